@@ -1,0 +1,176 @@
+//! The force model of the brief, one function per force.
+//!
+//! Every function is generic over the precision `R` so the CPU reference runs in `f32` and
+//! `f64`. The GPU shaders (`shaders/wgsl/`, `shaders/glsl/`) implement the same functions
+//! with the same names and the same operation order.
+
+use crate::real::{Real, Vec3};
+
+/// Gravity, `F_g = m g` (N), with `m` in kg and `g` in m/s².
+pub fn gravity_force<R: Real>(mass: R, gravity: Vec3<R>) -> Vec3<R> {
+    gravity * mass
+}
+
+/// Force on vertex `i` from one spring to vertex `j`: Hooke's law plus damping, N.
+///
+/// With `L = |x_j − x_i|` and `u = (x_j − x_i) / L`:
+/// * Hooke (`F_s = −k Δl` of the brief, seen from vertex `i`): `k (L − L0) u`,
+///   pulling `i` towards `j` when the spring is stretched;
+/// * damping (`F_d = −c_d v_s`): `c_d ((v_j − v_i) · u) u`, resisting the extension rate
+///   `v_s = dL/dt = (v_j − v_i) · u`.
+///
+/// `k` in N/m, `c_d` in N·s/m, `L0` in m. A zero-length spring exerts no force (its direction
+/// is undefined).
+pub fn spring_force<R: Real>(
+    x_i: Vec3<R>,
+    x_j: Vec3<R>,
+    v_i: Vec3<R>,
+    v_j: Vec3<R>,
+    rest_length: R,
+    stiffness: R,
+    damping: R,
+) -> Vec3<R> {
+    let delta = x_j - x_i;
+    let length = delta.length();
+    if length <= R::zero() {
+        return Vec3::zero();
+    }
+    let u = delta * (R::one() / length);
+    let extension_rate = (v_j - v_i).dot(u);
+    u * (stiffness * (length - rest_length) + damping * extension_rate)
+}
+
+/// Linear air drag, `F = −m γ v` (N), with `γ` in 1/s. Not in the brief; the `AirDrag` effect.
+pub fn air_drag_force<R: Real>(mass: R, rate: R, v: Vec3<R>) -> Vec3<R> {
+    v * (-(mass * rate))
+}
+
+/// A vertex in contact with a sphere.
+#[derive(Clone, Copy, Debug)]
+pub struct Contact<R> {
+    /// Outward unit normal of the sphere at the vertex, `1_n`.
+    pub normal: Vec3<R>,
+    /// Penetration depth, m (> 0).
+    pub depth: R,
+    /// Penalty force plus normal damping, N.
+    pub force: Vec3<R>,
+}
+
+/// Penalty contact with a sphere, `F_c = k_c d` (N), where `d = depth · 1_n` is the
+/// penetration vector and `k_c` the contact stiffness (N/m), plus a normal damping
+/// `−c_n min(v·1_n, 0) 1_n` (N·s/m) that resists only the approach, so the contact never pulls.
+/// Returns `None` when the vertex is outside the sphere.
+pub fn contact_force<R: Real>(
+    x: Vec3<R>,
+    v: Vec3<R>,
+    center: Vec3<R>,
+    radius: R,
+    stiffness: R,
+    damping: R,
+) -> Option<Contact<R>> {
+    let offset = x - center;
+    let distance = offset.length();
+    let depth = radius - distance;
+    if depth <= R::zero() {
+        return None;
+    }
+    let normal =
+        if distance > R::zero() { offset * (R::one() / distance) } else { Vec3::new(R::zero(), R::one(), R::zero()) };
+    let approach = v.dot(normal).min(R::zero());
+    let force = normal * (stiffness * depth - damping * approach);
+    Some(Contact { normal, depth, force })
+}
+
+/// Friction from the resultant of the other forces, N (the brief's four equations):
+///
+/// ```text
+/// R_on = (R_o · 1_n) 1_n          normal part of the other forces
+/// R_ot = R_o − R_on               tangential part
+/// 1_t  = R_ot / |R_ot|
+/// F_f  = −min(|R_ot|, c_f |R_on|) 1_t
+/// ```
+///
+/// `R_o` is the resultant of gravity, springs and drag, without the contact force (at rest
+/// the contact force cancels the normal load, so including it would cancel the friction).
+///
+/// One extension, documented in `docs/model.md`: a vertex that already slides also has the
+/// tangential force that would stop it within this substep, `m v_t / Δt`, added to `R_ot`.
+/// At rest (`v_t = 0`) this is exactly the brief's formula; while sliding, friction opposes
+/// the sliding with at most `c_f |R_on|` (Coulomb), and a vertex whose friction budget
+/// suffices is stopped exactly (static friction), instead of gliding on forever.
+pub fn friction_force<R: Real>(
+    other_forces: Vec3<R>,
+    v: Vec3<R>,
+    normal: Vec3<R>,
+    mass: R,
+    dt: R,
+    coefficient: R,
+) -> Vec3<R> {
+    let r_on = normal * other_forces.dot(normal);
+    let r_ot = other_forces - r_on;
+    let v_t = v - normal * v.dot(normal);
+    let tangential = r_ot + v_t * (mass / dt);
+    let magnitude = tangential.length();
+    if magnitude <= R::zero() {
+        return Vec3::zero();
+    }
+    let limit = coefficient * r_on.length();
+    tangential * (-(magnitude.min(limit) / magnitude))
+}
+
+/// Semi-implicit (symplectic) Euler, the brief's integrator:
+/// `v_c = v_p + Δt R / m`, then `x_c = x_p + Δt v_c`. Returns `(x_c, v_c)`.
+pub fn integrate<R: Real>(x: Vec3<R>, v: Vec3<R>, resultant: Vec3<R>, mass: R, dt: R) -> (Vec3<R>, Vec3<R>) {
+    let v_new = v + resultant * (dt / mass);
+    let x_new = x + v_new * dt;
+    (x_new, v_new)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn v(x: f64, y: f64, z: f64) -> Vec3<f64> {
+        Vec3::new(x, y, z)
+    }
+
+    #[test]
+    fn stretched_spring_pulls_towards_the_other_end() {
+        let f = spring_force(v(0., 0., 0.), v(2., 0., 0.), v(0., 0., 0.), v(0., 0., 0.), 1.0, 10.0, 0.0);
+        assert_eq!(f, v(10., 0., 0.));
+        let g = spring_force(v(0., 0., 0.), v(0.5, 0., 0.), v(0., 0., 0.), v(0., 0., 0.), 1.0, 10.0, 0.0);
+        assert_eq!(g, v(-5., 0., 0.));
+    }
+
+    #[test]
+    fn damping_resists_the_extension_rate_only() {
+        let f = spring_force(v(0., 0., 0.), v(1., 0., 0.), v(0., 0., 0.), v(2., 3., 0.), 1.0, 0.0, 0.5);
+        assert_eq!(f, v(1., 0., 0.));
+    }
+
+    #[test]
+    fn contact_pushes_out_along_the_normal() {
+        let c = contact_force(v(0., 0.9, 0.), v(0., 0., 0.), v(0., 0., 0.), 1.0, 100.0, 0.0).unwrap();
+        assert!((c.depth - 0.1).abs() < 1e-12);
+        assert!((c.force.y - 10.0).abs() < 1e-9);
+        assert!(contact_force(v(0., 1.1, 0.), v(0., 0., 0.), v(0., 0., 0.), 1.0, 100.0, 0.0).is_none());
+    }
+
+    #[test]
+    fn friction_cancels_small_tangential_forces_and_caps_large_ones() {
+        let n = v(0., 1., 0.);
+        // Normal load 10 N, tangential 3 N, c_f 0.5: limit 5 N > 3 N, cancelled exactly.
+        let f = friction_force(v(3., -10., 0.), v(0., 0., 0.), n, 1.0, 0.01, 0.5);
+        assert_eq!(f, v(-3., 0., 0.));
+        // Tangential 8 N > limit: friction is 5 N against it.
+        let f = friction_force(v(8., -10., 0.), v(0., 0., 0.), n, 1.0, 0.01, 0.5);
+        assert!((f.x + 5.0).abs() < 1e-12 && f.y == 0.0);
+    }
+
+    #[test]
+    fn symplectic_euler_updates_velocity_first() {
+        let (x, vel) = integrate(v(0., 0., 0.), v(1., 0., 0.), v(0., -2., 0.), 2.0, 0.5);
+        assert_eq!(vel, v(1., -0.5, 0.));
+        assert_eq!(x, v(0.5, -0.25, 0.));
+    }
+}

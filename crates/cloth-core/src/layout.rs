@@ -1,0 +1,263 @@
+//! GPU data layout, defined once here and consumed by every backend.
+//!
+//! All types are `#[repr(C)]` and `bytemuck::Pod`, with the alignment rules of WGSL and of GLSL
+//! `std140`/`std430` in mind (16-byte vectors first, sizes multiple of 16 for uniform blocks).
+//! The shaders declare the same structs; tests in each backend check sizes and offsets.
+//!
+//! Buffers of one simulation:
+//!
+//! | buffer | element | count |
+//! |---|---|---|
+//! | positions (×2, ping-pong) | `[f32; 4]`: xyz m, w = 1 free / 0 pinned | vertices |
+//! | velocities (×2, ping-pong) | `[f32; 4]`: xyz m/s, w unused | vertices |
+//! | spring ranges | [`GpuSpringRange`] | vertices |
+//! | spring ends | [`GpuSpringEnd`] | 2 × springs |
+//! | spheres | [`GpuSphere`] | spheres (at least 1 slot) |
+//! | parameters (uniform) | [`GpuSimParams`] | 1 |
+//!
+//! Why per-vertex spring ranges: one GPU thread updates one vertex. It walks its own list of
+//! spring ends (each spring is stored at both of its ends), sums the forces and writes only its
+//! own vertex. No two threads write the same memory, so no atomics are needed and the result
+//! does not depend on thread scheduling (the sum order is fixed by the list order).
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::effects::Effect;
+use crate::model::ClothModel;
+use crate::scene::Scene;
+use crate::springs::SpringKind;
+
+/// Simulation parameters, one uniform buffer. Every field can change between frames without
+/// rebuilding the pipeline.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSimParams {
+    /// Gravitational acceleration, m/s² (xyz; w unused).
+    pub gravity: [f32; 4],
+    /// Spring stiffness `k`, N/m, indexed by `SpringKind` (w unused).
+    pub stiffness: [f32; 4],
+    /// Spring damping `c_d`, N·s/m, indexed by `SpringKind` (w unused).
+    pub damping: [f32; 4],
+    /// Mass of each vertex, kg.
+    pub vertex_mass: f32,
+    /// Substep length `Δt`, s.
+    pub substep_dt: f32,
+    /// Air-drag rate `γ`, 1/s.
+    pub air_drag: f32,
+    /// Number of vertices.
+    pub vertex_count: u32,
+    /// Number of spheres in the sphere buffer.
+    pub sphere_count: u32,
+    /// Grid vertices along u.
+    pub grid_nx: u32,
+    /// Grid vertices along v.
+    pub grid_ny: u32,
+    /// Effect bit mask (`EffectSet::bits`), for diagnostics; the shader branches on override /
+    /// specialization constants, not on this.
+    pub effects: u32,
+}
+
+/// One sphere collider (32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSphere {
+    /// Centre, m.
+    pub center: [f32; 3],
+    /// Radius, m.
+    pub radius: f32,
+    /// Contact stiffness `k_c`, N/m.
+    pub stiffness: f32,
+    /// Friction coefficient `c_f`.
+    pub friction: f32,
+    /// Normal contact damping, N·s/m.
+    pub damping: f32,
+    /// Padding to 32 bytes.
+    pub _pad: f32,
+}
+
+/// A vertex's slice of the spring-end buffer.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSpringRange {
+    /// Index of the first end.
+    pub first: u32,
+    /// Number of ends.
+    pub count: u32,
+}
+
+/// One spring end (16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSpringEnd {
+    /// The vertex at the other end.
+    pub other: u32,
+    /// `SpringKind as u32`.
+    pub kind: u32,
+    /// Rest length, m.
+    pub rest_length: f32,
+    /// Padding to 16 bytes.
+    pub _pad: u32,
+}
+
+impl GpuSimParams {
+    /// The parameters of a scene, in `f32`.
+    pub fn from_scene(scene: &Scene) -> Self {
+        let s = &scene.springs;
+        let [nx, ny] = scene.cloth.resolution;
+        let f = |v: f64| v as f32;
+        Self {
+            gravity: [f(scene.gravity[0]), f(scene.gravity[1]), f(scene.gravity[2]), 0.0],
+            stiffness: [f(s.structural.stiffness), f(s.shear.stiffness), f(s.bend.stiffness), 0.0],
+            damping: [f(s.structural.damping), f(s.shear.damping), f(s.bend.damping), 0.0],
+            vertex_mass: f(scene.vertex_mass()),
+            substep_dt: f(scene.substep_dt()),
+            air_drag: f(scene.air_drag),
+            vertex_count: nx.saturating_mul(ny),
+            sphere_count: if scene.effects.contains(Effect::SphereContact) { scene.spheres.len() as u32 } else { 0 },
+            grid_nx: nx,
+            grid_ny: ny,
+            effects: scene.effects.bits(),
+        }
+    }
+}
+
+/// The contents of every GPU buffer of a simulation, ready to upload.
+#[derive(Clone, Debug)]
+pub struct GpuBuffers {
+    /// Parameters.
+    pub params: GpuSimParams,
+    /// Initial positions (w = 1 free, 0 pinned).
+    pub positions: Vec<[f32; 4]>,
+    /// Initial velocities.
+    pub velocities: Vec<[f32; 4]>,
+    /// Per-vertex spring ranges.
+    pub spring_ranges: Vec<GpuSpringRange>,
+    /// Spring ends (at least one element, so the buffer is never empty).
+    pub spring_ends: Vec<GpuSpringEnd>,
+    /// Spheres (at least one element, so the buffer is never empty; `params.sphere_count` says
+    /// how many are real).
+    pub spheres: Vec<GpuSphere>,
+}
+
+impl GpuBuffers {
+    /// Converts a model to GPU buffers.
+    pub fn new(model: &ClothModel) -> Self {
+        let scene = &model.scene;
+        let v0 = scene.cloth.initial_velocity;
+        let positions = model
+            .grid
+            .positions
+            .iter()
+            .zip(&model.grid.pinned)
+            .map(|(p, &pinned)| [p[0] as f32, p[1] as f32, p[2] as f32, if pinned { 0.0 } else { 1.0 }])
+            .collect();
+        let velocities = model
+            .grid
+            .pinned
+            .iter()
+            .map(|&pinned| if pinned { [0.0; 4] } else { [v0[0] as f32, v0[1] as f32, v0[2] as f32, 0.0] })
+            .collect();
+        let spring_ranges =
+            model.adjacency.first.windows(2).map(|w| GpuSpringRange { first: w[0], count: w[1] - w[0] }).collect();
+        let mut spring_ends: Vec<GpuSpringEnd> = model
+            .adjacency
+            .ends
+            .iter()
+            .map(|e| GpuSpringEnd { other: e.other, kind: e.kind as u32, rest_length: e.rest_length as f32, _pad: 0 })
+            .collect();
+        if spring_ends.is_empty() {
+            spring_ends.push(GpuSpringEnd::default());
+        }
+        let mut spheres: Vec<GpuSphere> = if scene.effects.contains(Effect::SphereContact) {
+            scene.spheres.iter().map(GpuSphere::from_spec).collect()
+        } else {
+            Vec::new()
+        };
+        if spheres.is_empty() {
+            spheres.push(GpuSphere::default());
+        }
+        Self { params: GpuSimParams::from_scene(scene), positions, velocities, spring_ranges, spring_ends, spheres }
+    }
+
+    /// Bytes of device memory these buffers take, counting both ping-pong copies.
+    pub fn device_bytes(&self) -> u64 {
+        let b = |n: usize, size: usize| (n * size) as u64;
+        2 * b(self.positions.len(), 16)
+            + 2 * b(self.velocities.len(), 16)
+            + b(self.spring_ranges.len(), 8)
+            + b(self.spring_ends.len(), 16)
+            + b(self.spheres.len(), 32)
+            + size_of::<GpuSimParams>() as u64
+    }
+}
+
+impl GpuSphere {
+    /// Converts a scene sphere to `f32`.
+    pub fn from_spec(s: &crate::scene::SphereSpec) -> Self {
+        Self {
+            center: [s.center[0] as f32, s.center[1] as f32, s.center[2] as f32],
+            radius: s.radius as f32,
+            stiffness: s.stiffness as f32,
+            friction: s.friction as f32,
+            damping: s.damping as f32,
+            _pad: 0.0,
+        }
+    }
+}
+
+/// Memory a scene will need, computed from the closed-form spring counts without building
+/// anything (so that a huge grid can be refused before allocation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// Bytes of the largest single buffer (the spring ends).
+    pub largest_buffer_bytes: u64,
+    /// Bytes of all GPU buffers together.
+    pub device_bytes: u64,
+    /// Bytes the CPU needs to build the model (positions, springs, lists) before upload.
+    pub host_bytes: u64,
+}
+
+impl MemoryEstimate {
+    /// Estimates the memory of a scene.
+    pub fn of(scene: &Scene) -> Self {
+        let [nx, ny] = scene.cloth.resolution;
+        let (nx, ny) = (nx as u64, ny as u64);
+        let vertices = nx * ny;
+        let springs: u64 = SpringKind::ALL
+            .iter()
+            .filter(|k| scene.effects.contains(k.effect()))
+            .map(|k| k.count_in_grid(nx, ny))
+            .sum();
+        let ends = (2 * springs).max(1);
+        let device_bytes = 4 * 16 * vertices + 8 * vertices + 16 * ends + 32 * scene.spheres.len().max(1) as u64 + 80;
+        // Host: f64 positions + pins, the spring list (32 B each) and f64 lists (24 B each).
+        let host_bytes = vertices * (24 + 1 + 4) + springs * 32 + ends * 24 + device_bytes;
+        Self { largest_buffer_bytes: (16 * ends).max(16 * vertices), device_bytes, host_bytes }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layouts_have_the_sizes_the_shaders_expect() {
+        assert_eq!(size_of::<GpuSimParams>(), 80);
+        assert_eq!(size_of::<GpuSimParams>() % 16, 0, "uniform blocks are multiples of 16 bytes");
+        assert_eq!(size_of::<GpuSphere>(), 32);
+        assert_eq!(size_of::<GpuSpringRange>(), 8);
+        assert_eq!(size_of::<GpuSpringEnd>(), 16);
+    }
+
+    #[test]
+    fn estimate_matches_the_built_buffers() {
+        for res in [[2, 2], [7, 13], [32, 32]] {
+            let scene = Scene {
+                cloth: crate::scene::ClothSpec { resolution: res, ..Default::default() },
+                ..Default::default()
+            };
+            let buffers = GpuBuffers::new(&ClothModel::new(&scene));
+            assert_eq!(MemoryEstimate::of(&scene).device_bytes, buffers.device_bytes(), "{res:?}");
+        }
+    }
+}

@@ -1,0 +1,51 @@
+//! # cloth-core
+//!
+//! The backend-agnostic heart of the cloth workbench, written to be read:
+//!
+//! * [`scene`]: what to simulate, loaded from RON ([`Scene`]), and [`validation`];
+//! * [`effects`]: the physical effects a scene switches on ([`EffectSet`]);
+//! * [`grid`] and [`springs`]: the `nx × ny` mesh and its structural, shear and bend springs;
+//! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
+//! * [`layout`]: the GPU buffer layouts (`#[repr(C)]`, `bytemuck`), shared by all backends;
+//! * [`forces`]: the brief's force model, one function per force;
+//! * [`reference`]: the CPU reference stepper (semi-implicit Euler), the test oracle;
+//! * [`stability`]: the largest stable substep;
+//! * [`simulator`]: the [`Simulator`] trait every backend implements;
+//! * [`energy`]: kinetic, elastic, gravitational and contact energy.
+//!
+//! ```
+//! use cloth_core::{Scene, Simulator, CpuSimulator};
+//! let mut scene = Scene::default();
+//! scene.cloth.resolution = [8, 8];
+//! let mut sim = CpuSimulator::new(&scene).unwrap();
+//! sim.advance(10).unwrap();
+//! let state = sim.read_state().unwrap();
+//! assert_eq!(state.non_finite_count(), 0);
+//! assert!(state.centroid()[1] < 1.8, "the cloth falls");
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod effects;
+pub mod energy;
+pub mod error;
+pub mod forces;
+pub mod grid;
+pub mod layout;
+pub mod model;
+pub mod real;
+pub mod reference;
+pub mod scene;
+pub mod simulator;
+pub mod springs;
+pub mod stability;
+pub mod validation;
+
+pub use effects::{Effect, EffectSet};
+pub use energy::Energy;
+pub use error::{Problem, SceneError, SimError};
+pub use model::ClothModel;
+pub use reference::{CpuSimulator, CpuSimulatorF64, ReferenceSimulator};
+pub use scene::{Scene, Substeps};
+pub use simulator::{ClothState, Diagnostics, Simulator};
+pub use springs::SpringKind;

@@ -1,0 +1,119 @@
+//! The cloth model built from a scene: grid, springs and per-vertex spring lists.
+//!
+//! This is the single source of truth both the CPU reference and the GPU layouts are built
+//! from (`layout::GpuBuffers::new` converts it to `f32` buffers).
+
+use crate::grid::Grid;
+use crate::scene::Scene;
+use crate::springs::{self, Spring, SpringKind};
+
+/// One end of a spring, as seen from the vertex that owns this entry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NeighbourSpring {
+    /// The vertex at the other end.
+    pub other: u32,
+    /// Kind of the spring.
+    pub kind: SpringKind,
+    /// Rest length `L0`, m.
+    pub rest_length: f64,
+}
+
+/// Per-vertex spring lists in compressed-row form: vertex `i` owns
+/// `ends[first[i] .. first[i + 1]]`.
+///
+/// Every spring appears twice, once in each endpoint's list. A GPU thread per vertex then reads
+/// only its own list and writes only its own vertex: no atomics and no scatter, at the cost of
+/// evaluating each spring twice (the two evaluations give equal and opposite forces).
+#[derive(Clone, Debug, Default)]
+pub struct Adjacency {
+    /// Start of each vertex's list in `ends`; `vertex_count + 1` entries.
+    pub first: Vec<u32>,
+    /// The spring ends, grouped by owning vertex.
+    pub ends: Vec<NeighbourSpring>,
+}
+
+impl Adjacency {
+    /// Builds the lists from a spring list. Within a vertex, ends keep the order of `springs`,
+    /// so every backend sums the forces in the same order.
+    pub fn new(vertex_count: usize, springs: &[Spring]) -> Self {
+        let mut counts = vec![0u32; vertex_count + 1];
+        for s in springs {
+            counts[s.a as usize + 1] += 1;
+            counts[s.b as usize + 1] += 1;
+        }
+        for i in 0..vertex_count {
+            counts[i + 1] += counts[i];
+        }
+        let first = counts;
+        let mut cursor = first.clone();
+        let mut ends =
+            vec![NeighbourSpring { other: 0, kind: SpringKind::Structural, rest_length: 0.0 }; springs.len() * 2];
+        for s in springs {
+            for (owner, other) in [(s.a, s.b), (s.b, s.a)] {
+                let slot = &mut cursor[owner as usize];
+                ends[*slot as usize] = NeighbourSpring { other, kind: s.kind, rest_length: s.rest_length };
+                *slot += 1;
+            }
+        }
+        Self { first, ends }
+    }
+
+    /// The springs owned by vertex `i`.
+    pub fn of(&self, i: usize) -> &[NeighbourSpring] {
+        &self.ends[self.first[i] as usize..self.first[i + 1] as usize]
+    }
+}
+
+/// Everything built from a scene before simulation starts.
+#[derive(Clone, Debug)]
+pub struct ClothModel {
+    /// The scene this model was built from.
+    pub scene: Scene,
+    /// Vertex rest positions and pins.
+    pub grid: Grid,
+    /// Every spring once.
+    pub springs: Vec<Spring>,
+    /// Per-vertex spring lists.
+    pub adjacency: Adjacency,
+}
+
+impl ClothModel {
+    /// Builds the model. The scene should have been validated (`Scene::validate`); an invalid
+    /// scene gives a model that is safe to build but meaningless to simulate.
+    pub fn new(scene: &Scene) -> Self {
+        let grid = Grid::new(&scene.cloth);
+        let springs = springs::generate(&grid, scene.effects);
+        let adjacency = Adjacency::new(grid.vertex_count(), &springs);
+        Self { scene: scene.clone(), grid, springs, adjacency }
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.grid.vertex_count()
+    }
+
+    /// Number of springs of each kind, `[structural, shear, bend]`.
+    pub fn spring_counts(&self) -> [usize; 3] {
+        springs::count_by_kind(&self.springs)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_spring_is_listed_at_both_ends() {
+        let scene =
+            Scene { cloth: crate::scene::ClothSpec { resolution: [4, 5], ..Default::default() }, ..Default::default() };
+        let model = ClothModel::new(&scene);
+        assert_eq!(model.adjacency.ends.len(), 2 * model.springs.len());
+        for s in &model.springs {
+            assert!(model.adjacency.of(s.a as usize).iter().any(|e| e.other == s.b && e.kind == s.kind));
+            assert!(model.adjacency.of(s.b as usize).iter().any(|e| e.other == s.a && e.kind == s.kind));
+        }
+        // An interior vertex of a large enough grid has 4 + 4 + 4 springs.
+        let centre = ClothModel::new(&Scene::default());
+        assert_eq!(centre.adjacency.of(16 * 32 + 16).len(), 12);
+    }
+}

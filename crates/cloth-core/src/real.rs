@@ -1,0 +1,104 @@
+//! Floating-point precision used by the CPU reference, and a minimal 3-vector.
+//!
+//! The reference stepper is generic over [`Real`] so that the same code runs in
+//! `f32` (to compare bit-for-bit-ish with the GPU) and in `f64` (a high-precision
+//! oracle). [`Vec3`] is deliberately tiny: only the operations the force model uses.
+
+use std::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+
+/// A floating-point type the reference can run in: `f32` or `f64`.
+pub trait Real:
+    num_traits::Float + num_traits::FromPrimitive + Send + Sync + std::fmt::Debug + Default + 'static
+{
+    /// Converts from `f64` (scene values are stored in `f64`).
+    fn of(value: f64) -> Self {
+        Self::from_f64(value).unwrap_or_else(Self::nan)
+    }
+    /// Converts to `f64` for reporting.
+    fn to_f64_lossy(self) -> f64 {
+        num_traits::ToPrimitive::to_f64(&self).unwrap_or(f64::NAN)
+    }
+}
+impl Real for f32 {}
+impl Real for f64 {}
+
+/// A 3-vector of [`Real`] components (positions in m, velocities in m/s, forces in N).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Vec3<R> {
+    /// x component.
+    pub x: R,
+    /// y component.
+    pub y: R,
+    /// z component.
+    pub z: R,
+}
+
+impl<R: Real> Vec3<R> {
+    /// The zero vector.
+    pub fn zero() -> Self {
+        Self::new(R::zero(), R::zero(), R::zero())
+    }
+    /// Builds a vector from its components.
+    pub fn new(x: R, y: R, z: R) -> Self {
+        Self { x, y, z }
+    }
+    /// Converts an `[f64; 3]` (scene units) to this precision.
+    pub fn from_f64(v: [f64; 3]) -> Self {
+        Self::new(R::of(v[0]), R::of(v[1]), R::of(v[2]))
+    }
+    /// Converts an `[f32; 3]` (GPU layout) to this precision.
+    pub fn from_f32(v: [f32; 3]) -> Self {
+        Self::from_f64([v[0] as f64, v[1] as f64, v[2] as f64])
+    }
+    /// Components as `f64`.
+    pub fn to_f64(self) -> [f64; 3] {
+        [self.x.to_f64_lossy(), self.y.to_f64_lossy(), self.z.to_f64_lossy()]
+    }
+    /// Dot product `a · b`.
+    pub fn dot(self, other: Self) -> R {
+        self.x * other.x + self.y * other.y + self.z * other.z
+    }
+    /// Euclidean length `|a|`.
+    pub fn length(self) -> R {
+        self.dot(self).sqrt()
+    }
+    /// `true` when every component is finite.
+    pub fn is_finite(self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
+    }
+}
+
+impl<R: Real> Add for Vec3<R> {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self::new(self.x + o.x, self.y + o.y, self.z + o.z)
+    }
+}
+impl<R: Real> Sub for Vec3<R> {
+    type Output = Self;
+    fn sub(self, o: Self) -> Self {
+        Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
+    }
+}
+impl<R: Real> Neg for Vec3<R> {
+    type Output = Self;
+    fn neg(self) -> Self {
+        Self::new(-self.x, -self.y, -self.z)
+    }
+}
+impl<R: Real> Mul<R> for Vec3<R> {
+    type Output = Self;
+    fn mul(self, s: R) -> Self {
+        Self::new(self.x * s, self.y * s, self.z * s)
+    }
+}
+impl<R: Real> AddAssign for Vec3<R> {
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
+impl<R: Real> SubAssign for Vec3<R> {
+    fn sub_assign(&mut self, o: Self) {
+        *self = *self - o;
+    }
+}

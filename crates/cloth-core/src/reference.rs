@@ -1,0 +1,298 @@
+//! The CPU reference stepper: the brief's model, readable, deterministic, in `f32` or `f64`.
+//!
+//! A substep computes every vertex's new state from the previous state only (a Jacobi sweep),
+//! exactly as a GPU thread per vertex does with ping-pong buffers. The result is therefore
+//! independent of the order vertices are visited in, and rayon can share the work out.
+
+use rayon::prelude::*;
+
+use crate::effects::Effect;
+use crate::error::SimError;
+use crate::forces::{air_drag_force, contact_force, friction_force, gravity_force, integrate, spring_force};
+use crate::model::ClothModel;
+use crate::real::{Real, Vec3};
+use crate::scene::Scene;
+use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
+
+/// Vertices per rayon task: below this, splitting costs more than it saves.
+const PARALLEL_CHUNK: usize = 512;
+
+/// One end of a spring in precision `R`.
+#[derive(Clone, Copy, Debug)]
+struct End<R> {
+    other: usize,
+    kind: usize,
+    rest_length: R,
+}
+
+/// A sphere in precision `R`.
+#[derive(Clone, Copy, Debug)]
+struct Sphere<R> {
+    center: Vec3<R>,
+    radius: R,
+    stiffness: R,
+    friction: R,
+    damping: R,
+}
+
+/// Parameters of one substep in precision `R` (the same values the GPU gets as `f32`).
+#[derive(Clone, Debug)]
+struct Params<R> {
+    gravity: Vec3<R>,
+    stiffness: [R; 3],
+    damping: [R; 3],
+    mass: R,
+    dt: R,
+    air_drag: R,
+    spheres: Vec<Sphere<R>>,
+}
+
+impl<R: Real> Params<R> {
+    fn new(scene: &Scene) -> Self {
+        let s = &scene.springs;
+        let spheres = if scene.effects.contains(Effect::SphereContact) {
+            scene
+                .spheres
+                .iter()
+                .map(|s| Sphere {
+                    center: Vec3::from_f64(s.center),
+                    radius: R::of(s.radius),
+                    stiffness: R::of(s.stiffness),
+                    friction: R::of(s.friction),
+                    damping: R::of(s.damping),
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Self {
+            gravity: Vec3::from_f64(scene.gravity),
+            stiffness: [R::of(s.structural.stiffness), R::of(s.shear.stiffness), R::of(s.bend.stiffness)],
+            damping: [R::of(s.structural.damping), R::of(s.shear.damping), R::of(s.bend.damping)],
+            mass: R::of(scene.vertex_mass()),
+            dt: R::of(scene.substep_dt()),
+            air_drag: R::of(scene.air_drag),
+            spheres,
+        }
+    }
+}
+
+/// The CPU reference simulator in precision `R` (`f32` or `f64`).
+#[derive(Clone, Debug)]
+pub struct ReferenceSimulator<R: Real> {
+    scene: Scene,
+    params: Params<R>,
+    /// Start of each vertex's spring list in `ends`.
+    first: Vec<usize>,
+    ends: Vec<End<R>>,
+    pinned: Vec<bool>,
+    positions: Vec<Vec3<R>>,
+    velocities: Vec<Vec3<R>>,
+    next_positions: Vec<Vec3<R>>,
+    next_velocities: Vec<Vec3<R>>,
+    time_s: f64,
+    max_penetration: R,
+    substeps_run: u64,
+}
+
+/// The `f32` reference: the oracle GPU results are compared with.
+pub type CpuSimulator = ReferenceSimulator<f32>;
+/// The `f64` reference: the high-precision oracle.
+pub type CpuSimulatorF64 = ReferenceSimulator<f64>;
+
+impl<R: Real> ReferenceSimulator<R> {
+    /// Builds the simulator from an already built model (skips validation).
+    pub fn from_model(model: &ClothModel) -> Self {
+        let scene = model.scene.clone();
+        let v0 = Vec3::from_f64(scene.cloth.initial_velocity);
+        let positions: Vec<Vec3<R>> = model.grid.positions.iter().map(|p| Vec3::from_f64(*p)).collect();
+        let velocities: Vec<Vec3<R>> = model.grid.pinned.iter().map(|&p| if p { Vec3::zero() } else { v0 }).collect();
+        Self {
+            params: Params::new(&scene),
+            first: model.adjacency.first.iter().map(|&f| f as usize).collect(),
+            ends: model
+                .adjacency
+                .ends
+                .iter()
+                .map(|e| End { other: e.other as usize, kind: e.kind as usize, rest_length: R::of(e.rest_length) })
+                .collect(),
+            pinned: model.grid.pinned.clone(),
+            next_positions: positions.clone(),
+            next_velocities: velocities.clone(),
+            positions,
+            velocities,
+            time_s: 0.0,
+            max_penetration: R::zero(),
+            substeps_run: 0,
+            scene,
+        }
+    }
+
+    /// Positions in this precision, m.
+    pub fn positions(&self) -> &[Vec3<R>] {
+        &self.positions
+    }
+
+    /// Velocities in this precision, m/s.
+    pub fn velocities(&self) -> &[Vec3<R>] {
+        &self.velocities
+    }
+
+    /// Advances one substep of `Δt = scene.substep_dt()`.
+    pub fn substep(&mut self) {
+        let (x, v) = (&self.positions, &self.velocities);
+        let ctx = StepContext {
+            params: &self.params,
+            effects: self.scene.effects,
+            first: &self.first,
+            ends: &self.ends,
+            x,
+            v,
+        };
+        let pinned = &self.pinned;
+        self.next_positions
+            .par_iter_mut()
+            .zip(self.next_velocities.par_iter_mut())
+            .enumerate()
+            .with_min_len(PARALLEL_CHUNK)
+            .for_each(|(i, (x_new, v_new))| {
+                (*x_new, *v_new) = if pinned[i] { (x[i], Vec3::zero()) } else { ctx.vertex_update(i) };
+            });
+        std::mem::swap(&mut self.positions, &mut self.next_positions);
+        std::mem::swap(&mut self.velocities, &mut self.next_velocities);
+        let depth = self.deepest_penetration();
+        if depth > self.max_penetration {
+            self.max_penetration = depth;
+        }
+        self.substeps_run += 1;
+        self.time_s += self.scene.substep_dt();
+    }
+
+    /// Deepest penetration of any vertex into any sphere right now, m (0 when none).
+    pub fn deepest_penetration(&self) -> R {
+        let spheres = &self.params.spheres;
+        if spheres.is_empty() {
+            return R::zero();
+        }
+        self.positions
+            .par_iter()
+            .with_min_len(PARALLEL_CHUNK)
+            .map(|&x| spheres.iter().map(|s| s.radius - (x - s.center).length()).fold(R::zero(), R::max))
+            .reduce(R::zero, R::max)
+    }
+}
+
+/// Read-only data of one substep.
+struct StepContext<'a, R: Real> {
+    params: &'a Params<R>,
+    effects: crate::effects::EffectSet,
+    first: &'a [usize],
+    ends: &'a [End<R>],
+    x: &'a [Vec3<R>],
+    v: &'a [Vec3<R>],
+}
+
+impl<R: Real> StepContext<'_, R> {
+    /// New position and velocity of free vertex `i`: sum the forces, then integrate.
+    fn vertex_update(&self, i: usize) -> (Vec3<R>, Vec3<R>) {
+        let p = self.params;
+        let (x, v) = (self.x[i], self.v[i]);
+        let mut force = Vec3::zero();
+        if self.effects.contains(Effect::Gravity) {
+            force += gravity_force(p.mass, p.gravity);
+        }
+        let damped = self.effects.contains(Effect::SpringDamping);
+        for end in &self.ends[self.first[i]..self.first[i + 1]] {
+            let j = end.other;
+            let damping = if damped { p.damping[end.kind] } else { R::zero() };
+            force += spring_force(x, self.x[j], v, self.v[j], end.rest_length, p.stiffness[end.kind], damping);
+        }
+        if self.effects.contains(Effect::AirDrag) {
+            force += air_drag_force(p.mass, p.air_drag, v);
+        }
+        // Contact and friction: R_o, the resultant of the other forces, is the force so far.
+        let other_forces = force;
+        for s in &p.spheres {
+            if let Some(contact) = contact_force(x, v, s.center, s.radius, s.stiffness, s.damping) {
+                force += contact.force;
+                if self.effects.contains(Effect::Friction) {
+                    force += friction_force(other_forces, v, contact.normal, p.mass, p.dt, s.friction);
+                }
+            }
+        }
+        integrate(x, v, force, p.mass, p.dt)
+    }
+}
+
+impl<R: Real> ReferenceSimulator<R> {
+    fn name() -> &'static str {
+        if size_of::<R>() == 4 { "cpu" } else { "cpu-f64" }
+    }
+}
+
+impl<R: Real> Simulator for ReferenceSimulator<R> {
+    fn new(scene: &Scene) -> Result<Self, SimError> {
+        scene.validate()?;
+        Ok(Self::from_model(&ClothModel::new(scene)))
+    }
+
+    fn backend_name(&self) -> &'static str {
+        Self::name()
+    }
+
+    fn adapter_name(&self) -> String {
+        let precision = if size_of::<R>() == 4 { "f32" } else { "f64" };
+        format!("CPU reference ({precision}, {} rayon threads)", rayon::current_num_threads())
+    }
+
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    fn advance(&mut self, frames: u32) -> Result<(), SimError> {
+        let substeps = self.scene.substeps_per_frame() as u64 * frames as u64;
+        for _ in 0..substeps {
+            self.substep();
+        }
+        Ok(())
+    }
+
+    fn update_parameters(&mut self, scene: &Scene) -> Result<(), SimError> {
+        if let Some(what) = self.scene.rebuild_reason(scene) {
+            return Err(SimError::RebuildRequired { what });
+        }
+        scene.validate()?;
+        self.params = Params::new(scene);
+        self.scene = scene.clone();
+        Ok(())
+    }
+
+    fn read_state(&mut self) -> Result<ClothState, SimError> {
+        let to_f32 = |v: &Vec3<R>| {
+            let [x, y, z] = v.to_f64();
+            [x as f32, y as f32, z as f32]
+        };
+        Ok(ClothState {
+            time_s: self.time_s,
+            positions: self.positions.iter().map(to_f32).collect(),
+            velocities: self.velocities.iter().map(to_f32).collect(),
+        })
+    }
+
+    fn write_state(&mut self, state: &ClothState) -> Result<(), SimError> {
+        check_state_size(self.positions.len(), state)?;
+        self.positions = state.positions.iter().map(|p| Vec3::from_f32(*p)).collect();
+        self.velocities = state.velocities.iter().map(|v| Vec3::from_f32(*v)).collect();
+        self.time_s = state.time_s;
+        Ok(())
+    }
+
+    fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
+        Ok(Diagnostics {
+            max_penetration_m: self.max_penetration.to_f64_lossy(),
+            substeps_run: self.substeps_run,
+            submissions_last_advance: 0,
+            host_waits_last_advance: 0,
+        })
+    }
+}

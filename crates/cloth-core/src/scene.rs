@@ -1,0 +1,306 @@
+//! Scenes: everything a simulation needs, loaded from RON files.
+//!
+//! Every field has a unit and a default; a field left out of a RON file takes the
+//! default shown here. `Scene::default()` is the brief's scene: a 32 × 32 cloth
+//! falling onto a sphere and draping over it.
+//!
+//! ```ron
+//! Scene(
+//!     name: "drape",
+//!     cloth: (resolution: (32, 32), size: (2.0, 2.0), center: (0.0, 1.8, 0.0)),
+//!     spheres: [(center: (0.0, 1.0, 0.0), radius: 0.5)],
+//! )
+//! ```
+//!
+//! Loading never panics: [`Scene::from_ron_str`] returns a [`SceneError`] that names the
+//! line and column of a syntax error, or every validation problem at once.
+
+use serde::{Deserialize, Serialize};
+
+use crate::effects::EffectSet;
+use crate::error::SceneError;
+
+/// A complete simulation set-up.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scene {
+    /// Short name shown in the tools. Default `"drape"`.
+    pub name: String,
+    /// One sentence saying what the scene shows.
+    pub description: String,
+    /// The cloth: resolution, size, placement, mass and pins.
+    pub cloth: ClothSpec,
+    /// Stiffness and damping of each spring kind.
+    pub springs: SpringSpecs,
+    /// Spheres the cloth collides with. Default: one sphere of radius 0.5 m centred at (0, 1, 0).
+    pub spheres: Vec<SphereSpec>,
+    /// Gravitational acceleration `g`, m/s². Default `(0, -9.81, 0)`.
+    pub gravity: [f64; 3],
+    /// Air-drag rate `γ`, 1/s, for the `AirDrag` effect: `F = -m γ v`. Default 0.5.
+    pub air_drag: f64,
+    /// Time stepping: frame length, substeps per frame, run length.
+    pub time: TimeSpec,
+    /// The effects this scene simulates. Default: the brief's (everything but air drag).
+    pub effects: EffectSet,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self {
+            name: "drape".into(),
+            description: "A cloth falls onto a sphere and drapes over it (the brief's scene).".into(),
+            cloth: ClothSpec::default(),
+            springs: SpringSpecs::default(),
+            spheres: vec![SphereSpec::default()],
+            gravity: [0.0, -9.81, 0.0],
+            air_drag: 0.5,
+            time: TimeSpec::default(),
+            effects: EffectSet::default(),
+        }
+    }
+}
+
+/// The cloth: an `nx × ny` grid of point masses spanning a rectangle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ClothSpec {
+    /// Vertices along the two sides, `(nx, ny)`; each at least 2. Default `(32, 32)`.
+    /// This is the brief's "number of vertices of the fabric": edit it here or with
+    /// `cloth run --grid NXxNY`.
+    pub resolution: [u32; 2],
+    /// Physical size of the rectangle along its two sides, m. Default `(2.0, 2.0)`.
+    pub size: [f64; 2],
+    /// Position of the rectangle's centre, m. Default `(0, 1.8, 0)`.
+    pub center: [f64; 3],
+    /// Orientation of the rectangle. Default `Horizontal`.
+    pub orientation: Orientation,
+    /// Mass of the point masses. Default `Total(0.5)` kg.
+    pub mass: Mass,
+    /// Vertices held fixed in space. Default: none.
+    pub pins: Vec<Pin>,
+    /// Velocity every free vertex starts with, m/s. Default `(0, 0, 0)`.
+    pub initial_velocity: [f64; 3],
+}
+
+impl Default for ClothSpec {
+    fn default() -> Self {
+        Self {
+            resolution: [32, 32],
+            size: [2.0, 2.0],
+            center: [0.0, 1.8, 0.0],
+            orientation: Orientation::Horizontal,
+            mass: Mass::Total(0.5),
+            pins: Vec::new(),
+            initial_velocity: [0.0; 3],
+        }
+    }
+}
+
+/// How the cloth rectangle is oriented. Vertex `(i, j)` sits at
+/// `center + (i/(nx-1) - ½)·size_u·u + (j/(ny-1) - ½)·size_v·v`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Orientation {
+    /// Lying flat: `u = +X`, `v = -Z` (the normal is +Y).
+    Horizontal,
+    /// Standing up: `u = +X`, `v = +Y` (the normal is +Z); row `j = ny-1` is the top.
+    Vertical,
+    /// Any two directions; they are normalised, and must not be parallel.
+    Axes {
+        /// Direction of increasing `i`.
+        u: [f64; 3],
+        /// Direction of increasing `j`.
+        v: [f64; 3],
+    },
+}
+
+/// Mass of the point masses, kg.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Mass {
+    /// Every vertex has this mass, kg.
+    PerVertex(f64),
+    /// The cloth's total mass, kg, shared equally between its `nx·ny` vertices.
+    Total(f64),
+}
+
+/// A named corner of the grid. `Left` is column `i = 0`, `Right` is `i = nx-1`,
+/// `Bottom` is row `j = 0`, `Top` is `j = ny-1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Corner {
+    /// `(0, ny-1)`.
+    TopLeft,
+    /// `(nx-1, ny-1)`.
+    TopRight,
+    /// `(0, 0)`.
+    BottomLeft,
+    /// `(nx-1, 0)`.
+    BottomRight,
+}
+
+/// A named edge of the grid (same convention as [`Corner`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Edge {
+    /// Row `j = ny-1`.
+    Top,
+    /// Row `j = 0`.
+    Bottom,
+    /// Column `i = 0`.
+    Left,
+    /// Column `i = nx-1`.
+    Right,
+}
+
+/// Which vertices are pinned (held fixed, infinite mass).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Pin {
+    /// A named corner.
+    Corner(Corner),
+    /// Every vertex of a named edge.
+    Edge(Edge),
+    /// A vertex by its index `j·nx + i`.
+    Vertex(u32),
+    /// A vertex by its grid coordinates `(i, j)`.
+    GridPoint(u32, u32),
+}
+
+/// Stiffness and damping of one spring kind.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    /// Hooke stiffness `k`, N/m.
+    pub stiffness: f64,
+    /// Damping coefficient `c_d` along the spring, N·s/m.
+    pub damping: f64,
+}
+
+/// The three spring kinds of a mass-spring cloth.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SpringSpecs {
+    /// 4-neighbour springs. Default `k = 400 N/m, c_d = 0.02 N·s/m`.
+    pub structural: SpringSpec,
+    /// Diagonal springs. Default `k = 200 N/m, c_d = 0.01 N·s/m`.
+    pub shear: SpringSpec,
+    /// Springs to the vertex two steps away. Default `k = 100 N/m, c_d = 0.005 N·s/m`.
+    pub bend: SpringSpec,
+}
+
+impl Default for SpringSpecs {
+    fn default() -> Self {
+        Self {
+            structural: SpringSpec { stiffness: 400.0, damping: 0.02 },
+            shear: SpringSpec { stiffness: 200.0, damping: 0.01 },
+            bend: SpringSpec { stiffness: 100.0, damping: 0.005 },
+        }
+    }
+}
+
+/// A sphere the cloth collides with.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SphereSpec {
+    /// Centre, m. Default `(0, 1, 0)`.
+    pub center: [f64; 3],
+    /// Radius, m. Default 0.5.
+    pub radius: f64,
+    /// Contact (penalty) stiffness `k_c`, N/m: `F_c = k_c d`. Default 1000.
+    pub stiffness: f64,
+    /// Friction coefficient `c_f` (dimensionless). Default 0.5.
+    pub friction: f64,
+    /// Damping of the normal approach velocity while in contact, N·s/m. Default 0.2.
+    pub damping: f64,
+}
+
+impl Default for SphereSpec {
+    fn default() -> Self {
+        Self { center: [0.0, 1.0, 0.0], radius: 0.5, stiffness: 1000.0, friction: 0.5, damping: 0.2 }
+    }
+}
+
+/// Time stepping.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TimeSpec {
+    /// Length of one displayed frame, s. Default 1/60.
+    pub frame_dt: f64,
+    /// Substeps per frame; each substep advances `frame_dt / substeps`. Default `Fixed(40)`.
+    pub substeps: Substeps,
+    /// How many frames `cloth run` simulates when not told. Default 300 (5 s).
+    pub frames: u32,
+}
+
+impl Default for TimeSpec {
+    fn default() -> Self {
+        Self { frame_dt: 1.0 / 60.0, substeps: Substeps::Fixed(40), frames: 300 }
+    }
+}
+
+/// Substeps per frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Substeps {
+    /// Exactly this many substeps per frame.
+    Fixed(u32),
+    /// The fewest substeps that keep each one below [`Auto::SAFETY`] of the stable bound.
+    Auto,
+}
+
+/// Constants of [`Substeps::Auto`].
+pub struct Auto;
+impl Auto {
+    /// Fraction of the largest stable substep that `Auto` aims for.
+    pub const SAFETY: f64 = 0.8;
+}
+
+impl Scene {
+    /// Parses a RON scene and validates it.
+    ///
+    /// # Errors
+    /// [`SceneError::Parse`] with line and column for malformed text,
+    /// [`SceneError::Invalid`] listing every validation problem.
+    pub fn from_ron_str(text: &str) -> Result<Self, SceneError> {
+        let scene: Scene = ron::de::from_str(text).map_err(SceneError::from_ron)?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Reads, parses and validates a RON scene file.
+    ///
+    /// # Errors
+    /// [`SceneError::Io`] when the file cannot be read, else as [`Scene::from_ron_str`].
+    pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
+        Self::from_ron_str(&text)
+    }
+
+    /// Serialises the scene as pretty RON.
+    pub fn to_ron_string(&self) -> String {
+        let config = ron::ser::PrettyConfig::new().depth_limit(4).struct_names(true);
+        ron::ser::to_string_pretty(self, config).unwrap_or_else(|e| format!("// cannot serialise: {e}"))
+    }
+
+    /// Number of vertices `nx · ny`.
+    pub fn vertex_count(&self) -> usize {
+        self.cloth.resolution[0] as usize * self.cloth.resolution[1] as usize
+    }
+
+    /// Mass of each vertex, kg.
+    pub fn vertex_mass(&self) -> f64 {
+        match self.cloth.mass {
+            Mass::PerVertex(m) => m,
+            Mass::Total(total) => total / self.vertex_count().max(1) as f64,
+        }
+    }
+
+    /// Length of one substep, s (for `Auto`, the one [`crate::stability`] picks).
+    pub fn substep_dt(&self) -> f64 {
+        self.time.frame_dt / self.substeps_per_frame() as f64
+    }
+
+    /// Substeps per frame, resolving `Auto` against the stability bound.
+    pub fn substeps_per_frame(&self) -> u32 {
+        match self.time.substeps {
+            Substeps::Fixed(n) => n.max(1),
+            Substeps::Auto => crate::stability::auto_substeps(self),
+        }
+    }
+}

@@ -1,0 +1,138 @@
+//! The interface every backend implements (CPU reference, wgpu, vulkano).
+
+use crate::error::SimError;
+use crate::scene::Scene;
+
+/// The dynamic state of a cloth: what is handed from one backend to another.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ClothState {
+    /// Simulated time since the start, s.
+    pub time_s: f64,
+    /// Vertex positions, m.
+    pub positions: Vec<[f32; 3]>,
+    /// Vertex velocities, m/s.
+    pub velocities: Vec<[f32; 3]>,
+}
+
+impl ClothState {
+    /// Number of vertices whose position or velocity is NaN or infinite.
+    pub fn non_finite_count(&self) -> usize {
+        self.positions
+            .iter()
+            .zip(&self.velocities)
+            .filter(|(p, v)| !p.iter().chain(v.iter()).all(|x| x.is_finite()))
+            .count()
+    }
+
+    /// Mean position of the vertices, m.
+    pub fn centroid(&self) -> [f64; 3] {
+        let n = self.positions.len().max(1) as f64;
+        let mut c = [0.0; 3];
+        for p in &self.positions {
+            for k in 0..3 {
+                c[k] += p[k] as f64 / n;
+            }
+        }
+        c
+    }
+}
+
+/// Quantities a backend tracks while it runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Diagnostics {
+    /// Deepest any vertex went inside any sphere since creation (checked after every
+    /// substep), m.
+    pub max_penetration_m: f64,
+    /// Substeps run since creation.
+    pub substeps_run: u64,
+    /// Command submissions to the device during the last `advance` (0 on the CPU).
+    pub submissions_last_advance: u32,
+    /// Times the host waited for the device during the last `advance` (0 on the CPU).
+    pub host_waits_last_advance: u32,
+}
+
+/// A cloth simulator. One frame is `scene.substeps_per_frame()` substeps of
+/// `scene.substep_dt()`; [`Simulator::advance`] runs whole frames with no host round trip
+/// between substeps.
+pub trait Simulator {
+    /// Creates the simulator for a scene (the scene is validated first).
+    ///
+    /// # Errors
+    /// [`SimError::Scene`] for an invalid scene, [`SimError::Unavailable`] when the backend
+    /// cannot run here, [`SimError::TooLarge`] when the scene does not fit the device.
+    fn new(scene: &Scene) -> Result<Self, SimError>
+    where
+        Self: Sized;
+
+    /// Short backend name, e.g. `"cpu"`, `"wgpu"`.
+    fn backend_name(&self) -> &'static str;
+
+    /// The device the backend runs on, in words.
+    fn adapter_name(&self) -> String;
+
+    /// The scene being simulated, with any live parameter changes applied.
+    fn scene(&self) -> &Scene;
+
+    /// Advances `frames` frames (all substeps inside).
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the device fails.
+    fn advance(&mut self, frames: u32) -> Result<(), SimError>;
+
+    /// Applies new parameters (stiffness, damping, masses, gravity, spheres, time step) without
+    /// restarting.
+    ///
+    /// # Errors
+    /// [`SimError::RebuildRequired`] when the change needs a new simulator (grid, pins,
+    /// effects, number of spheres), [`SimError::Scene`] when the new scene is invalid.
+    fn update_parameters(&mut self, scene: &Scene) -> Result<(), SimError>;
+
+    /// Reads the current state back.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the read-back fails.
+    fn read_state(&mut self) -> Result<ClothState, SimError>;
+
+    /// Replaces the current state (e.g. a state handed over from another backend).
+    ///
+    /// # Errors
+    /// [`SimError::StateMismatch`] when the vertex count differs.
+    fn write_state(&mut self, state: &ClothState) -> Result<(), SimError>;
+
+    /// Diagnostics tracked since creation.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the read-back fails.
+    fn diagnostics(&mut self) -> Result<Diagnostics, SimError>;
+}
+
+impl Scene {
+    /// If `new` differs from `self` in something only a rebuild can change, says what.
+    pub fn rebuild_reason(&self, new: &Scene) -> Option<String> {
+        let (a, b) = (&self.cloth, &new.cloth);
+        if a.resolution != b.resolution {
+            Some("the grid resolution".into())
+        } else if a.size != b.size || a.orientation != b.orientation {
+            Some("the cloth size or orientation (spring rest lengths)".into())
+        } else if a.pins != b.pins {
+            Some("the pins".into())
+        } else if self.effects != new.effects {
+            Some("the set of effects".into())
+        } else if self.spheres.len() != new.spheres.len() {
+            Some("the number of spheres".into())
+        } else {
+            None
+        }
+    }
+}
+
+/// Checks that a state fits a simulator of `expected` vertices.
+///
+/// # Errors
+/// [`SimError::StateMismatch`] when it does not.
+pub fn check_state_size(expected: usize, state: &ClothState) -> Result<(), SimError> {
+    if state.positions.len() != expected || state.velocities.len() != expected {
+        return Err(SimError::StateMismatch { expected, got: state.positions.len().min(state.velocities.len()) });
+    }
+    Ok(())
+}

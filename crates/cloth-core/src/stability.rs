@@ -1,0 +1,124 @@
+//! How large a substep the semi-implicit Euler integrator tolerates.
+//!
+//! For one vertex of mass `m` tied by springs, the fastest mode's angular frequency obeys
+//! (Gershgorin's bound on `M⁻¹K`) `ω_max² ≤ 2 Σk / m`, the sum running over the vertex's
+//! springs (each neighbour can move against it). Damping adds `c = 2 Σc_d / m` (plus contact
+//! damping and the air-drag rate). Semi-implicit Euler applied to `x'' = -ω² x - c x'` has the
+//! amplification matrix with trace `2 - hc - h²ω²` and determinant `1 - hc`; it is stable when
+//!
+//! ```text
+//! h < (-c + √(c² + 4ω²)) / ω²        (= 2/ω without damping)
+//! ```
+//!
+//! A sphere in contact adds its penalty stiffness `k_c` to `Σk` (once, not doubled: the sphere
+//! does not move). Masses are equal, so the most connected vertex (the grid's centre) sets
+//! the bound.
+
+use crate::effects::Effect;
+use crate::scene::{Auto, Scene};
+use crate::springs::SpringKind;
+
+/// Largest stable substep `h_max`, s, for the scene's springs, masses and damping
+/// (`f64::INFINITY` when nothing in the scene limits the step).
+pub fn stable_substep(scene: &Scene) -> f64 {
+    let (omega_sq, damping_rate) = stiffness_and_damping_rates(scene);
+    bound(omega_sq, damping_rate)
+}
+
+/// `h_max` for the oscillator `x'' = -ω² x - c x'` under semi-implicit Euler.
+pub fn bound(omega_sq: f64, damping_rate: f64) -> f64 {
+    let (w2, c) = (omega_sq.max(0.0), damping_rate.max(0.0));
+    if w2 > 0.0 {
+        (-c + (c * c + 4.0 * w2).sqrt()) / w2
+    } else if c > 0.0 {
+        2.0 / c
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// `(ω_max², c)` bounds at the most connected vertex: 1/s² and 1/s.
+pub fn stiffness_and_damping_rates(scene: &Scene) -> (f64, f64) {
+    let m = scene.vertex_mass();
+    if !(m > 0.0) {
+        return (f64::INFINITY, 0.0);
+    }
+    let [nx, ny] = scene.cloth.resolution;
+    let (ci, cj) = ((nx / 2) as i64, (ny / 2) as i64);
+    let inside = |di: i64, dj: i64| {
+        let (i, j) = (ci + di, cj + dj);
+        i >= 0 && j >= 0 && i < nx as i64 && j < ny as i64
+    };
+    let mut k_sum = 0.0;
+    let mut c_sum = 0.0;
+    for kind in SpringKind::ALL {
+        if !scene.effects.contains(kind.effect()) {
+            continue;
+        }
+        let spec = match kind {
+            SpringKind::Structural => scene.springs.structural,
+            SpringKind::Shear => scene.springs.shear,
+            SpringKind::Bend => scene.springs.bend,
+        };
+        let offsets: &[(i64, i64)] = match kind {
+            SpringKind::Structural => &[(1, 0), (-1, 0), (0, 1), (0, -1)],
+            SpringKind::Shear => &[(1, 1), (-1, 1), (1, -1), (-1, -1)],
+            SpringKind::Bend => &[(2, 0), (-2, 0), (0, 2), (0, -2)],
+        };
+        let n = offsets.iter().filter(|(di, dj)| inside(*di, *dj)).count() as f64;
+        k_sum += 2.0 * n * spec.stiffness;
+        if scene.effects.contains(Effect::SpringDamping) {
+            c_sum += 2.0 * n * spec.damping;
+        }
+    }
+    if scene.effects.contains(Effect::SphereContact) {
+        for s in &scene.spheres {
+            k_sum += s.stiffness;
+            c_sum += s.damping;
+        }
+    }
+    let mut damping_rate = c_sum / m;
+    if scene.effects.contains(Effect::AirDrag) {
+        damping_rate += scene.air_drag;
+    }
+    (k_sum / m, damping_rate)
+}
+
+/// Substeps per frame chosen by `Substeps::Auto`: the fewest that keep each substep below
+/// `Auto::SAFETY × h_max`.
+pub fn auto_substeps(scene: &Scene) -> u32 {
+    let h = stable_substep(scene) * Auto::SAFETY;
+    if !(h > 0.0) || !scene.time.frame_dt.is_finite() {
+        return 1;
+    }
+    let n = (scene.time.frame_dt / h).ceil();
+    if n.is_finite() { n.clamp(1.0, u32::MAX as f64) as u32 } else { 1 }
+}
+
+/// `Δt / h_max`: below 1 is stable, above 1 diverges.
+pub fn stability_margin(scene: &Scene) -> f64 {
+    scene.substep_dt() / stable_substep(scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn undamped_bound_is_two_over_omega() {
+        assert!((bound(100.0, 0.0) - 0.2).abs() < 1e-12);
+        assert!(bound(100.0, 5.0) < 0.2, "damping shrinks the step");
+        assert_eq!(bound(0.0, 0.0), f64::INFINITY);
+    }
+
+    #[test]
+    fn auto_picks_enough_substeps() {
+        let scene = Scene {
+            time: crate::scene::TimeSpec { substeps: crate::scene::Substeps::Auto, ..Default::default() },
+            ..Default::default()
+        };
+        let n = auto_substeps(&scene);
+        assert!(scene.time.frame_dt / n as f64 <= Auto::SAFETY * stable_substep(&scene) * (1.0 + 1e-12));
+        assert!(scene.time.frame_dt / (n - 1) as f64 > Auto::SAFETY * stable_substep(&scene));
+    }
+}

@@ -1,0 +1,264 @@
+//! Scene validation: every problem at once, each naming the field and the fix.
+
+use crate::effects::Effect;
+use crate::error::{Problem, SceneError};
+use crate::grid::pin_indices;
+use crate::layout::MemoryEstimate;
+use crate::scene::{Mass, Orientation, Scene, SpringSpec, Substeps};
+use crate::stability;
+
+/// Largest host memory a scene may need, bytes (8 GiB): beyond it the grid is refused
+/// before anything is allocated.
+pub const MAX_HOST_BYTES: u64 = 8 << 30;
+
+struct Checker {
+    problems: Vec<Problem>,
+}
+
+impl Checker {
+    fn fail(&mut self, field: impl Into<String>, message: impl Into<String>, fix: impl Into<String>) {
+        self.problems.push(Problem { field: field.into(), message: message.into(), fix: fix.into() });
+    }
+
+    fn finite(&mut self, field: &str, v: f64) -> bool {
+        if v.is_finite() {
+            return true;
+        }
+        self.fail(field, format!("is {v}, not a finite number"), "write a finite number");
+        false
+    }
+
+    fn positive(&mut self, field: &str, v: f64, unit: &str) {
+        if self.finite(field, v) && v <= 0.0 {
+            self.fail(
+                field,
+                format!("is {v} {unit}, must be greater than 0"),
+                format!("give a positive value in {unit}"),
+            );
+        }
+    }
+
+    fn non_negative(&mut self, field: &str, v: f64, unit: &str) {
+        if self.finite(field, v) && v < 0.0 {
+            self.fail(
+                field,
+                format!("is {v} {unit}, must not be negative"),
+                format!("give 0 or a positive value in {unit}"),
+            );
+        }
+    }
+
+    fn vector(&mut self, field: &str, v: [f64; 3]) -> bool {
+        let mut ok = true;
+        for (i, x) in v.iter().enumerate() {
+            ok &= self.finite(&format!("{field}[{i}]"), *x);
+        }
+        ok
+    }
+
+    fn spring(&mut self, field: &str, s: &SpringSpec) {
+        self.non_negative(&format!("{field}.stiffness"), s.stiffness, "N/m");
+        self.non_negative(&format!("{field}.damping"), s.damping, "N·s/m");
+    }
+}
+
+impl Scene {
+    /// Checks every field. Returns the warnings (problems that still let the scene run, such as
+    /// a substep above the stability bound), or [`SceneError::Invalid`] listing every error.
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] when any value is unusable.
+    pub fn validate(&self) -> Result<Vec<Problem>, SceneError> {
+        let mut c = Checker { problems: Vec::new() };
+        let cloth = &self.cloth;
+        let [nx, ny] = cloth.resolution;
+        let mut grid_ok = true;
+        for (k, n) in [nx, ny].into_iter().enumerate() {
+            if n < 2 {
+                grid_ok = false;
+                c.fail(
+                    format!("cloth.resolution[{k}]"),
+                    format!("is {n} vertices; a cloth needs at least 2 along each side"),
+                    "use 2 or more (e.g. (32, 32))",
+                );
+            }
+        }
+        if grid_ok {
+            let memory = MemoryEstimate::of(self);
+            if (nx as u64) * (ny as u64) > u32::MAX as u64 / 2 || memory.host_bytes > MAX_HOST_BYTES {
+                c.fail(
+                    "cloth.resolution",
+                    format!(
+                        "grid {nx}x{ny} needs about {} MiB of memory, more than the {} MiB this tool allocates",
+                        memory.host_bytes >> 20,
+                        MAX_HOST_BYTES >> 20
+                    ),
+                    "use a smaller grid",
+                );
+            }
+        }
+        for (k, s) in cloth.size.iter().enumerate() {
+            c.positive(&format!("cloth.size[{k}]"), *s, "m");
+        }
+        c.vector("cloth.center", cloth.center);
+        c.vector("cloth.initial_velocity", cloth.initial_velocity);
+        if let Orientation::Axes { u, v } = &cloth.orientation {
+            let ok = c.vector("cloth.orientation.u", *u) & c.vector("cloth.orientation.v", *v);
+            let cross = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            let norm = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            if ok && norm(cross) <= 1e-9 * norm(*u) * norm(*v) {
+                c.fail("cloth.orientation", "u and v are zero or parallel", "give two non-parallel directions");
+            }
+        }
+        match cloth.mass {
+            Mass::PerVertex(m) => c.positive("cloth.mass.PerVertex", m, "kg"),
+            Mass::Total(m) => c.positive("cloth.mass.Total", m, "kg"),
+        }
+        let vertex_count = nx as u64 * ny as u64;
+        for (k, pin) in cloth.pins.iter().enumerate() {
+            if let Some(bad) = pin_indices(pin, nx, ny).into_iter().find(|&i| i >= vertex_count) {
+                let shown =
+                    if bad == u64::MAX { "a point outside the grid".to_string() } else { format!("vertex {bad}") };
+                c.fail(
+                    format!("cloth.pins[{k}]"),
+                    format!("{pin:?} names {shown}, but the grid has {vertex_count} vertices ({nx}x{ny})"),
+                    format!("use an index below {vertex_count}, or i < {nx} and j < {ny}"),
+                );
+            }
+        }
+        c.spring("springs.structural", &self.springs.structural);
+        c.spring("springs.shear", &self.springs.shear);
+        c.spring("springs.bend", &self.springs.bend);
+        for (k, s) in self.spheres.iter().enumerate() {
+            let f = |name: &str| format!("spheres[{k}].{name}");
+            c.vector(&f("center"), s.center);
+            c.positive(&f("radius"), s.radius, "m");
+            c.non_negative(&f("stiffness"), s.stiffness, "N/m");
+            c.non_negative(&f("friction"), s.friction, "(dimensionless)");
+            c.non_negative(&f("damping"), s.damping, "N·s/m");
+        }
+        c.vector("gravity", self.gravity);
+        c.non_negative("air_drag", self.air_drag, "1/s");
+        c.positive("time.frame_dt", self.time.frame_dt, "s");
+        if self.time.substeps == Substeps::Fixed(0) {
+            c.fail("time.substeps", "is Fixed(0); a frame needs at least one substep", "use Fixed(1) or more, or Auto");
+        }
+        if self.effects.contains(Effect::Friction) && !self.effects.contains(Effect::SphereContact) {
+            c.fail(
+                "effects",
+                "Friction is listed without SphereContact; friction acts only in contact",
+                "add SphereContact or remove Friction",
+            );
+        }
+        if !c.problems.is_empty() {
+            return Err(SceneError::Invalid(c.problems));
+        }
+
+        let mut warnings = Vec::new();
+        let bound = stability::stable_substep(self);
+        let dt = self.substep_dt();
+        if dt > bound {
+            let needed = (self.time.frame_dt / bound).ceil();
+            warnings.push(Problem {
+                field: "time.substeps".into(),
+                message: format!(
+                    "substep {dt:.3e} s is {:.2}x the largest stable substep {bound:.3e} s: the simulation will blow up",
+                    dt / bound
+                ),
+                fix: format!("use Fixed({needed}) or more substeps per frame, or Auto"),
+            });
+        }
+        Ok(warnings)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Corner, Pin, SphereSpec};
+
+    fn fields(scene: &Scene) -> Vec<String> {
+        match scene.validate() {
+            Err(SceneError::Invalid(p)) => p.into_iter().map(|p| p.field).collect(),
+            other => panic!("expected invalid, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn default_scene_is_valid_and_stable() {
+        assert_eq!(Scene::default().validate().unwrap(), vec![]);
+    }
+
+    #[test]
+    fn every_problem_is_reported_at_once() {
+        let mut s = Scene::default();
+        s.cloth.resolution = [1, 0];
+        s.cloth.mass = Mass::PerVertex(-1.0);
+        s.spheres = vec![SphereSpec { radius: 0.0, friction: -0.1, ..Default::default() }];
+        s.springs.shear.stiffness = -5.0;
+        s.time.frame_dt = f64::NAN;
+        s.time.substeps = Substeps::Fixed(0);
+        s.gravity[1] = f64::INFINITY;
+        let f = fields(&s);
+        for expected in [
+            "cloth.resolution[0]",
+            "cloth.resolution[1]",
+            "cloth.mass.PerVertex",
+            "spheres[0].radius",
+            "spheres[0].friction",
+            "springs.shear.stiffness",
+            "time.frame_dt",
+            "time.substeps",
+            "gravity[1]",
+        ] {
+            assert!(f.iter().any(|x| x == expected), "missing {expected} in {f:?}");
+        }
+    }
+
+    #[test]
+    fn messages_name_the_value_and_the_fix() {
+        let mut s = Scene::default();
+        s.cloth.mass = Mass::Total(0.0);
+        let err = s.validate().unwrap_err().to_string();
+        assert!(err.contains("cloth.mass.Total: is 0 kg, must be greater than 0"), "{err}");
+        assert!(err.contains("fix: give a positive value in kg"), "{err}");
+    }
+
+    #[test]
+    fn out_of_range_pins_are_reported() {
+        let mut s = Scene::default();
+        s.cloth.resolution = [4, 4];
+        s.cloth.pins = vec![Pin::Corner(Corner::TopLeft), Pin::Vertex(16), Pin::GridPoint(4, 0)];
+        let err = s.validate().unwrap_err();
+        let f: Vec<_> = err.problems().iter().map(|p| p.field.as_str()).collect();
+        assert_eq!(f, ["cloth.pins[1]", "cloth.pins[2]"]);
+        assert!(err.to_string().contains("Vertex(16) names vertex 16, but the grid has 16 vertices (4x4)"), "{err}");
+    }
+
+    #[test]
+    fn a_grid_too_large_is_refused_before_allocation() {
+        let mut s = Scene::default();
+        s.cloth.resolution = [100_000, 100_000];
+        let err = s.validate().unwrap_err().to_string();
+        assert!(err.contains("cloth.resolution: grid 100000x100000 needs about"), "{err}");
+        assert!(err.contains("use a smaller grid"), "{err}");
+    }
+
+    #[test]
+    fn friction_needs_contact() {
+        let mut s = Scene::default();
+        s.effects = s.effects.without(Effect::SphereContact);
+        assert_eq!(fields(&s), ["effects"]);
+    }
+
+    #[test]
+    fn an_unstable_substep_is_a_warning_naming_the_fix() {
+        let mut s = Scene::default();
+        s.time.substeps = Substeps::Fixed(2);
+        let warnings = s.validate().unwrap();
+        assert_eq!(warnings.len(), 1);
+        assert_eq!(warnings[0].field, "time.substeps");
+        assert!(warnings[0].message.contains("largest stable substep"));
+        assert!(warnings[0].fix.starts_with("use Fixed("));
+    }
+}
