@@ -1,1 +1,198 @@
-fn main() {}
+//! `cloth`: the headless command-line front end of the cloth workbench.
+//!
+//! * `cloth run [SCENE]`: simulate and summarise (text or `--json`), optionally render a PNG;
+//! * `cloth check SCENE`: validate, and print spring counts, memory and the stable substep;
+//! * `cloth backends`: the backends compiled in and the adapters each can use.
+
+mod backends;
+mod render;
+mod report;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use cloth_core::layout::MemoryEstimate;
+use cloth_core::{ClothModel, Energy, Scene, Substeps, stability};
+use indicatif::{ProgressBar, ProgressStyle};
+
+#[derive(Parser)]
+#[command(name = "cloth", version, about = "Mass-spring cloth simulation workbench (headless)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate a scene and print a summary.
+    Run(RunArgs),
+    /// Validate a scene and print its spring counts, memory and stability bound.
+    Check {
+        /// RON scene file.
+        scene: PathBuf,
+        /// Override the grid resolution, e.g. 64x48.
+        #[arg(long, value_parser = parse_grid)]
+        grid: Option<[u32; 2]>,
+        /// Override the substeps per frame (a number, or `auto`).
+        #[arg(long, value_parser = parse_substeps)]
+        substeps: Option<Substeps>,
+    },
+    /// List the backends compiled in and the adapters each can use.
+    Backends,
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    /// RON scene file (default: the built-in drape scene, as in scenes/drape.ron).
+    scene: Option<PathBuf>,
+    /// Backend to run on (see `cloth backends`).
+    #[arg(long, default_value = "cpu")]
+    backend: String,
+    /// Frames to simulate (default: the scene's `time.frames`).
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Grid resolution NXxNY, e.g. 64x48 (vertices along each side).
+    #[arg(long, value_parser = parse_grid)]
+    grid: Option<[u32; 2]>,
+    /// Substeps per frame (a number, or `auto`).
+    #[arg(long, value_parser = parse_substeps)]
+    substeps: Option<Substeps>,
+    /// Print one JSON object instead of the text summary.
+    #[arg(long)]
+    json: bool,
+    /// Render the final state to this PNG file.
+    #[arg(long)]
+    png: Option<PathBuf>,
+}
+
+fn parse_grid(text: &str) -> Result<[u32; 2], String> {
+    let (a, b) = text.split_once(['x', 'X']).ok_or_else(|| format!("'{text}' is not NXxNY (e.g. 64x48)"))?;
+    let n = |s: &str| s.trim().parse::<u32>().map_err(|e| format!("'{s}' in '{text}': {e} (expected NXxNY, e.g. 64x48)"));
+    Ok([n(a)?, n(b)?])
+}
+
+fn parse_substeps(text: &str) -> Result<Substeps, String> {
+    if text.eq_ignore_ascii_case("auto") {
+        return Ok(Substeps::Auto);
+    }
+    text.parse::<u32>().map(Substeps::Fixed).map_err(|e| format!("'{text}': {e} (expected a number or 'auto')"))
+}
+
+fn load_scene(path: Option<&PathBuf>, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> Result<Scene> {
+    let mut scene = match path {
+        Some(p) => Scene::load(p).with_context(|| format!("cannot use scene {}", p.display()))?,
+        None => Scene::default(),
+    };
+    if let Some(g) = grid {
+        scene.cloth.resolution = g;
+    }
+    if let Some(s) = substeps {
+        scene.time.substeps = s;
+    }
+    let warnings = scene.validate().context("the scene with the command-line overrides is invalid")?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Command::Run(args) => run(args),
+        Command::Check { scene, grid, substeps } => check(&scene, grid, substeps),
+        Command::Backends => {
+            for b in backends::all() {
+                println!("{:<8} {}", b.name, b.description);
+                match (b.adapters)() {
+                    Ok(list) if !list.is_empty() => list.iter().for_each(|a| println!("         - {a}")),
+                    Ok(_) => println!("         (no adapter found)"),
+                    Err(why) => println!("         unavailable: {why}"),
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> Result<()> {
+    let scene = load_scene(Some(path), grid, substeps)?;
+    let [nx, ny] = scene.cloth.resolution;
+    let model = ClothModel::new(&scene);
+    let [st, sh, be] = model.spring_counts();
+    let memory = MemoryEstimate::of(&scene);
+    let bound = stability::stable_substep(&scene);
+    println!("scene      {} — {}", scene.name, scene.description);
+    println!("grid       {nx} x {ny} = {} vertices", scene.vertex_count());
+    println!("springs    {st} structural, {sh} shear, {be} bend ({} in all)", st + sh + be);
+    println!("effects    {:?}", scene.effects);
+    println!("mass       {:.4e} kg per vertex", scene.vertex_mass());
+    println!("memory     {:.2} MiB on the device ({:.2} MiB largest buffer)", mib(memory.device_bytes), mib(memory.largest_buffer_bytes));
+    println!(
+        "substep    {:.3e} s ({} per frame of {:.4} s)",
+        scene.substep_dt(),
+        scene.substeps_per_frame(),
+        scene.time.frame_dt
+    );
+    println!(
+        "stability  largest stable substep {bound:.3e} s; margin {:.2} ({})",
+        scene.substep_dt() / bound,
+        if scene.substep_dt() <= bound { "stable" } else { "UNSTABLE: raise the substeps" }
+    );
+    println!("ok");
+    Ok(())
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1 << 20) as f64
+}
+
+fn run(args: RunArgs) -> Result<()> {
+    let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
+    let backend = backends::find(&args.backend)?;
+    let frames = args.frames.unwrap_or(scene.time.frames);
+    let mut sim = (backend.create)(&scene).with_context(|| format!("cannot start the {} backend", backend.name))?;
+
+    let progress = if args.json || frames < 30 { ProgressBar::hidden() } else { ProgressBar::new(frames as u64) };
+    progress.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} frames ({per_sec}, eta {eta})")
+            .expect("progress template is valid")
+            .progress_chars("=> "),
+    );
+    progress.set_message(format!("{} on {}", scene.name, sim.backend_name()));
+    let start = Instant::now();
+    let chunk = 1;
+    let mut done = 0;
+    while done < frames {
+        let n = chunk.min(frames - done);
+        sim.advance(n).with_context(|| format!("the {} backend failed at frame {done}", backend.name))?;
+        done += n;
+        progress.set_position(done as u64);
+    }
+    let state = sim.read_state()?;
+    let wall = start.elapsed();
+    progress.finish_and_clear();
+    let diagnostics = sim.diagnostics()?;
+    let model = ClothModel::new(&scene);
+    let energy = Energy::of(&model, &state);
+    let report = report::Report::new(&*sim, &model, &state, &diagnostics, &energy, frames, wall);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        report.print_text();
+    }
+    if let Some(png) = &args.png {
+        render::write_png(&model, &state, png, 800, 600)?;
+        if !args.json {
+            println!("picture     {}", png.display());
+        }
+    }
+    if report.nan_count > 0 {
+        bail!(
+            "{} vertices became NaN or infinite: the step is probably unstable (run `cloth check` and raise the substeps)",
+            report.nan_count
+        );
+    }
+    Ok(())
+}

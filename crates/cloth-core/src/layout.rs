@@ -220,19 +220,26 @@ pub struct MemoryEstimate {
 impl MemoryEstimate {
     /// Estimates the memory of a scene.
     pub fn of(scene: &Scene) -> Self {
+        // u128 arithmetic: a resolution typed by mistake (say 4e9 x 4e9) must give a huge
+        // estimate that validation refuses, not an overflow.
         let [nx, ny] = scene.cloth.resolution;
-        let (nx, ny) = (nx as u64, ny as u64);
+        let (nx, ny) = (nx as u128, ny as u128);
         let vertices = nx * ny;
-        let springs: u64 = SpringKind::ALL
+        let springs: u128 = SpringKind::ALL
             .iter()
             .filter(|k| scene.effects.contains(k.effect()))
-            .map(|k| k.count_in_grid(nx, ny))
+            .map(|k| k.count_in_grid(nx as u64, ny as u64) as u128)
             .sum();
         let ends = (2 * springs).max(1);
-        let device_bytes = 4 * 16 * vertices + 8 * vertices + 16 * ends + 32 * scene.spheres.len().max(1) as u64 + 80;
+        let device_bytes = 4 * 16 * vertices + 8 * vertices + 16 * ends + 32 * scene.spheres.len().max(1) as u128 + 80;
         // Host: f64 positions + pins, the spring list (32 B each) and f64 lists (24 B each).
         let host_bytes = vertices * (24 + 1 + 4) + springs * 32 + ends * 24 + device_bytes;
-        Self { largest_buffer_bytes: (16 * ends).max(16 * vertices), device_bytes, host_bytes }
+        let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
+        Self {
+            largest_buffer_bytes: clamp((16 * ends).max(16 * vertices)),
+            device_bytes: clamp(device_bytes),
+            host_bytes: clamp(host_bytes),
+        }
     }
 }
 

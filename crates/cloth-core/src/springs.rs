@@ -49,9 +49,13 @@ impl SpringKind {
     /// Closed-form number of springs of this kind in an `nx × ny` grid.
     pub fn count_in_grid(self, nx: u64, ny: u64) -> u64 {
         match self {
-            SpringKind::Structural => nx * ny.saturating_sub(1) + ny * nx.saturating_sub(1),
-            SpringKind::Shear => 2 * nx.saturating_sub(1) * ny.saturating_sub(1),
-            SpringKind::Bend => nx * ny.saturating_sub(2) + ny * nx.saturating_sub(2),
+            SpringKind::Structural => {
+                nx.saturating_mul(ny.saturating_sub(1)).saturating_add(ny.saturating_mul(nx.saturating_sub(1)))
+            }
+            SpringKind::Shear => 2u64.saturating_mul(nx.saturating_sub(1)).saturating_mul(ny.saturating_sub(1)),
+            SpringKind::Bend => {
+                nx.saturating_mul(ny.saturating_sub(2)).saturating_add(ny.saturating_mul(nx.saturating_sub(2)))
+            }
         }
     }
 

@@ -40,7 +40,7 @@ pub fn bound(omega_sq: f64, damping_rate: f64) -> f64 {
 /// `(ω_max², c)` bounds at the most connected vertex: 1/s² and 1/s.
 pub fn stiffness_and_damping_rates(scene: &Scene) -> (f64, f64) {
     let m = scene.vertex_mass();
-    if !(m > 0.0) {
+    if m.is_nan() || m <= 0.0 {
         return (f64::INFINITY, 0.0);
     }
     let [nx, ny] = scene.cloth.resolution;
@@ -88,7 +88,7 @@ pub fn stiffness_and_damping_rates(scene: &Scene) -> (f64, f64) {
 /// `Auto::SAFETY × h_max`.
 pub fn auto_substeps(scene: &Scene) -> u32 {
     let h = stable_substep(scene) * Auto::SAFETY;
-    if !(h > 0.0) || !scene.time.frame_dt.is_finite() {
+    if h.is_nan() || h <= 0.0 || !scene.time.frame_dt.is_finite() {
         return 1;
     }
     let n = (scene.time.frame_dt / h).ceil();

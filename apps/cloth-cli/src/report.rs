@@ -1,0 +1,96 @@
+//! The summary of a run, as text or JSON.
+
+use std::time::Duration;
+
+use cloth_core::{ClothModel, ClothState, Diagnostics, Energy, Simulator};
+use serde::Serialize;
+
+/// Spring counts by kind.
+#[derive(Serialize)]
+pub struct SpringCounts {
+    pub structural: usize,
+    pub shear: usize,
+    pub bend: usize,
+}
+
+/// What `cloth run` reports.
+#[derive(Serialize)]
+pub struct Report {
+    pub scene: String,
+    pub backend: String,
+    pub adapter: String,
+    pub grid: [u32; 2],
+    pub vertices: usize,
+    pub springs: SpringCounts,
+    pub frames: u32,
+    pub substeps_per_frame: u32,
+    pub substep_s: f64,
+    pub stable_substep_s: f64,
+    pub simulated_seconds: f64,
+    pub max_penetration_m: f64,
+    pub max_penetration_fraction_of_radius: Option<f64>,
+    pub nan_count: usize,
+    pub final_kinetic_energy_j: f64,
+    pub final_total_energy_j: f64,
+    pub final_centroid_m: [f64; 3],
+    pub wall_ms_per_frame: f64,
+    pub submissions_per_frame: f64,
+    pub host_waits_per_frame: f64,
+}
+
+impl Report {
+    pub fn new(
+        sim: &dyn Simulator,
+        model: &ClothModel,
+        state: &ClothState,
+        diagnostics: &Diagnostics,
+        energy: &Energy,
+        frames: u32,
+        wall: Duration,
+    ) -> Self {
+        let scene = &model.scene;
+        let [structural, shear, bend] = model.spring_counts();
+        let min_radius = scene.spheres.iter().map(|s| s.radius).fold(f64::INFINITY, f64::min);
+        Self {
+            scene: scene.name.clone(),
+            backend: sim.backend_name().to_string(),
+            adapter: sim.adapter_name(),
+            grid: scene.cloth.resolution,
+            vertices: model.vertex_count(),
+            springs: SpringCounts { structural, shear, bend },
+            frames,
+            substeps_per_frame: scene.substeps_per_frame(),
+            substep_s: scene.substep_dt(),
+            stable_substep_s: cloth_core::stability::stable_substep(scene),
+            simulated_seconds: state.time_s,
+            max_penetration_m: diagnostics.max_penetration_m,
+            max_penetration_fraction_of_radius: min_radius.is_finite().then(|| diagnostics.max_penetration_m / min_radius),
+            nan_count: state.non_finite_count(),
+            final_kinetic_energy_j: energy.kinetic,
+            final_total_energy_j: energy.total(),
+            final_centroid_m: state.centroid(),
+            wall_ms_per_frame: wall.as_secs_f64() * 1e3 / frames.max(1) as f64,
+            submissions_per_frame: diagnostics.submissions_last_advance as f64,
+            host_waits_per_frame: diagnostics.host_waits_last_advance as f64,
+        }
+    }
+
+    pub fn print_text(&self) {
+        let c = self.final_centroid_m;
+        println!("scene       {} on {} ({})", self.scene, self.backend, self.adapter);
+        println!(
+            "cloth       {}x{} = {} vertices; springs {} structural, {} shear, {} bend",
+            self.grid[0], self.grid[1], self.vertices, self.springs.structural, self.springs.shear, self.springs.bend
+        );
+        println!(
+            "time        {} frames x {} substeps of {:.3e} s = {:.3} s simulated (stable bound {:.3e} s)",
+            self.frames, self.substeps_per_frame, self.substep_s, self.simulated_seconds, self.stable_substep_s
+        );
+        match self.max_penetration_fraction_of_radius {
+            Some(f) => println!("contact     max penetration {:.3e} m ({:.2}% of the radius)", self.max_penetration_m, 100.0 * f),
+            None => println!("contact     no sphere"),
+        }
+        println!("state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}", c[0], c[1], c[2], self.final_kinetic_energy_j, self.nan_count);
+        println!("speed       {:.3} ms per frame (wall clock)", self.wall_ms_per_frame);
+    }
+}

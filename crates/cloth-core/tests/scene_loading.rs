@@ -1,0 +1,88 @@
+//! Loading scenes: the shipped files, malformed text, and random input (no panic, ever).
+
+use cloth_core::{Scene, SceneError};
+use proptest::prelude::*;
+
+#[test]
+fn shipped_scenes_load_and_drape_is_the_default() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    for name in ["drape", "hanging", "slide", "hold"] {
+        let scene = Scene::load(&dir.join(format!("{name}.ron"))).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(scene.name, name);
+        assert_eq!(scene.validate().unwrap(), vec![], "{name} has warnings");
+    }
+    assert_eq!(Scene::load(&dir.join("drape.ron")).unwrap(), Scene::default(), "drape.ron is Scene::default()");
+}
+
+#[test]
+fn a_scene_round_trips_through_ron() {
+    let scene = Scene::default();
+    assert_eq!(Scene::from_ron_str(&scene.to_ron_string()).unwrap(), scene);
+}
+
+#[test]
+fn malformed_text_reports_line_and_column() {
+    let text = "Scene(\n  name: \"x\",\n  cloth: (resolution: (4, 4),,\n)";
+    match Scene::from_ron_str(text) {
+        Err(SceneError::Parse { line, column, .. }) => assert_eq!((line, column), (3, 30)),
+        other => panic!("expected a parse error, got {other:?}"),
+    }
+    let err = Scene::from_ron_str("Scene(clth: ())").unwrap_err().to_string();
+    assert!(err.contains("line 1") && err.contains("clth"), "unknown field is named: {err}");
+}
+
+#[test]
+fn nan_and_infinity_in_a_file_are_reported_by_field() {
+    let err = Scene::from_ron_str("Scene(gravity: (0.0, NaN, 0.0), air_drag: inf)").unwrap_err();
+    let fields: Vec<_> = err.problems().iter().map(|p| p.field.as_str()).collect();
+    assert_eq!(fields, ["gravity[1]", "air_drag"]);
+    assert!(err.to_string().contains("gravity[1]: is NaN, not a finite number"), "{err}");
+}
+
+#[test]
+fn the_bad_inputs_of_the_issue_each_give_their_message() {
+    let cases = [
+        ("Scene(cloth: (resolution: (1, 8)))", "cloth.resolution[0]: is 1 vertices; a cloth needs at least 2"),
+        ("Scene(cloth: (resolution: (0, 0)))", "cloth.resolution[1]: is 0 vertices"),
+        ("Scene(cloth: (mass: PerVertex(-0.1)))", "cloth.mass.PerVertex: is -0.1 kg, must be greater than 0"),
+        ("Scene(spheres: [(radius: 0.0)])", "spheres[0].radius: is 0 m, must be greater than 0"),
+        ("Scene(time: (frame_dt: -0.01))", "time.frame_dt: is -0.01 s, must be greater than 0"),
+        ("Scene(springs: (bend: (stiffness: -1.0, damping: 0.0)))", "springs.bend.stiffness: is -1 N/m, must not be negative"),
+        ("Scene(spheres: [(friction: -0.5)])", "spheres[0].friction: is -0.5 (dimensionless), must not be negative"),
+        ("Scene(cloth: (resolution: (4, 4), pins: [Vertex(99)]))", "cloth.pins[0]: Vertex(99) names vertex 99"),
+        ("Scene(cloth: (resolution: (70000, 70000)))", "cloth.resolution: grid 70000x70000 needs about"),
+    ];
+    for (text, expected) in cases {
+        let err = Scene::from_ron_str(text).unwrap_err().to_string();
+        assert!(err.contains(expected), "{text}\n  gave: {err}\n  expected: {expected}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
+        let text = String::from_utf8_lossy(&bytes);
+        let _ = Scene::from_ron_str(&text);
+    }
+
+    #[test]
+    fn random_field_values_never_panic(
+        nx in any::<u32>(), ny in any::<u32>(),
+        size in any::<f64>(), mass in any::<f64>(), k in any::<f64>(), radius in any::<f64>(),
+        friction in any::<f64>(), dt in any::<f64>(), substeps in any::<u32>(), pin in any::<u32>(),
+    ) {
+        let text = format!(
+            "Scene(cloth: (resolution: ({nx}, {ny}), size: ({size:?}, 1.0), mass: Total({mass:?}), pins: [Vertex({pin})]),
+                   springs: (structural: (stiffness: {k:?}, damping: 0.0)),
+                   spheres: [(radius: {radius:?}, friction: {friction:?})],
+                   time: (frame_dt: {dt:?}, substeps: Fixed({substeps})))"
+        );
+        if let Ok(scene) = Scene::from_ron_str(&text) {
+            // A scene that passes validation has usable values everywhere.
+            prop_assert!(scene.vertex_mass() > 0.0 && scene.substep_dt() > 0.0);
+            prop_assert!(scene.vertex_count() >= 4);
+        }
+    }
+}
