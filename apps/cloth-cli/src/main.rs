@@ -69,7 +69,8 @@ struct RunArgs {
 
 fn parse_grid(text: &str) -> Result<[u32; 2], String> {
     let (a, b) = text.split_once(['x', 'X']).ok_or_else(|| format!("'{text}' is not NXxNY (e.g. 64x48)"))?;
-    let n = |s: &str| s.trim().parse::<u32>().map_err(|e| format!("'{s}' in '{text}': {e} (expected NXxNY, e.g. 64x48)"));
+    let n =
+        |s: &str| s.trim().parse::<u32>().map_err(|e| format!("'{s}' in '{text}': {e} (expected NXxNY, e.g. 64x48)"));
     Ok([n(a)?, n(b)?])
 }
 
@@ -128,7 +129,11 @@ fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> 
     println!("springs    {st} structural, {sh} shear, {be} bend ({} in all)", st + sh + be);
     println!("effects    {:?}", scene.effects);
     println!("mass       {:.4e} kg per vertex", scene.vertex_mass());
-    println!("memory     {:.2} MiB on the device ({:.2} MiB largest buffer)", mib(memory.device_bytes), mib(memory.largest_buffer_bytes));
+    println!(
+        "memory     {:.2} MiB on the device ({:.2} MiB largest buffer)",
+        mib(memory.device_bytes),
+        mib(memory.largest_buffer_bytes)
+    );
     println!(
         "substep    {:.3e} s ({} per frame of {:.4} s)",
         scene.substep_dt(),

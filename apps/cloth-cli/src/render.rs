@@ -74,7 +74,13 @@ fn shade(base: [f64; 3], lambert: f64) -> [f64; 3] {
 }
 
 /// Renders the state and writes a PNG of `width × height` pixels.
-pub fn write_png(model: &ClothModel, state: &ClothState, path: &Path, width: usize, height: usize) -> anyhow::Result<()> {
+pub fn write_png(
+    model: &ClothModel,
+    state: &ClothState,
+    path: &Path,
+    width: usize,
+    height: usize,
+) -> anyhow::Result<()> {
     let pixels = render(model, state, width, height);
     let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width as u32, height as u32);

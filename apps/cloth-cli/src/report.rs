@@ -64,7 +64,9 @@ impl Report {
             stable_substep_s: cloth_core::stability::stable_substep(scene),
             simulated_seconds: state.time_s,
             max_penetration_m: diagnostics.max_penetration_m,
-            max_penetration_fraction_of_radius: min_radius.is_finite().then(|| diagnostics.max_penetration_m / min_radius),
+            max_penetration_fraction_of_radius: min_radius
+                .is_finite()
+                .then(|| diagnostics.max_penetration_m / min_radius),
             nan_count: state.non_finite_count(),
             final_kinetic_energy_j: energy.kinetic,
             final_total_energy_j: energy.total(),
@@ -87,10 +89,17 @@ impl Report {
             self.frames, self.substeps_per_frame, self.substep_s, self.simulated_seconds, self.stable_substep_s
         );
         match self.max_penetration_fraction_of_radius {
-            Some(f) => println!("contact     max penetration {:.3e} m ({:.2}% of the radius)", self.max_penetration_m, 100.0 * f),
+            Some(f) => println!(
+                "contact     max penetration {:.3e} m ({:.2}% of the radius)",
+                self.max_penetration_m,
+                100.0 * f
+            ),
             None => println!("contact     no sphere"),
         }
-        println!("state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}", c[0], c[1], c[2], self.final_kinetic_energy_j, self.nan_count);
+        println!(
+            "state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}",
+            c[0], c[1], c[2], self.final_kinetic_energy_j, self.nan_count
+        );
         println!("speed       {:.3} ms per frame (wall clock)", self.wall_ms_per_frame);
     }
 }

@@ -36,7 +36,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     scene.time.substeps = Substeps::Auto;
     let model = ClothModel::new(&scene);
     let mut sim = CpuSimulator::new(&scene)?;
-    println!("{} vertices, {} substeps per frame of {:.4} s", model.vertex_count(), scene.substeps_per_frame(), scene.time.frame_dt);
+    println!(
+        "{} vertices, {} substeps per frame of {:.4} s",
+        model.vertex_count(),
+        scene.substeps_per_frame(),
+        scene.time.frame_dt
+    );
     println!("{:>6}  {:>10}  {:>12}  {:>12}", "t (s)", "lowest y", "kinetic (J)", "elastic (J)");
     for _ in 0..=20 {
         let state = sim.read_state()?;

@@ -8,7 +8,7 @@
 //! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
 //! * [`layout`]: the GPU buffer layouts (`#[repr(C)]`, `bytemuck`), shared by all backends;
 //! * [`forces`]: the brief's force model, one function per force;
-//! * [`reference`]: the CPU reference stepper (semi-implicit Euler), the test oracle;
+//! * [`reference`](mod@reference): the CPU reference stepper (semi-implicit Euler), the test oracle;
 //! * [`stability`]: the largest stable substep;
 //! * [`simulator`]: the [`Simulator`] trait every backend implements;
 //! * [`energy`]: kinetic, elastic, gravitational and contact energy.

@@ -140,7 +140,10 @@ fn slide_leaves_the_frictionless_sphere_and_hold_stays() {
 
 #[test]
 fn the_stability_bound_separates_stable_from_unstable_steps() {
-    let mut scene = bare(&[Effect::Gravity, Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings, Effect::SpringDamping], [12, 9]);
+    let mut scene = bare(
+        &[Effect::Gravity, Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings, Effect::SpringDamping],
+        [12, 9],
+    );
     scene.cloth.pins = vec![Pin::Corner(Corner::TopLeft), Pin::Corner(Corner::TopRight)];
     scene.cloth.orientation = Orientation::Vertical;
     let bound = stability::stable_substep(&scene);
@@ -176,7 +179,12 @@ fn f32_and_f64_references_agree_on_a_short_horizon() {
     a.advance(12).unwrap();
     b.advance(12).unwrap();
     let (sa, sb) = (a.read_state().unwrap(), b.read_state().unwrap());
-    let worst = sa.positions.iter().zip(&sb.positions).map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0, f32::max)).fold(0.0, f32::max);
+    let worst = sa
+        .positions
+        .iter()
+        .zip(&sb.positions)
+        .map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0, f32::max))
+        .fold(0.0, f32::max);
     assert!(worst < 1e-5, "f32 and f64 differ by {worst} m after 12 frames");
 }
 

@@ -47,7 +47,10 @@ fn the_bad_inputs_of_the_issue_each_give_their_message() {
         ("Scene(cloth: (mass: PerVertex(-0.1)))", "cloth.mass.PerVertex: is -0.1 kg, must be greater than 0"),
         ("Scene(spheres: [(radius: 0.0)])", "spheres[0].radius: is 0 m, must be greater than 0"),
         ("Scene(time: (frame_dt: -0.01))", "time.frame_dt: is -0.01 s, must be greater than 0"),
-        ("Scene(springs: (bend: (stiffness: -1.0, damping: 0.0)))", "springs.bend.stiffness: is -1 N/m, must not be negative"),
+        (
+            "Scene(springs: (bend: (stiffness: -1.0, damping: 0.0)))",
+            "springs.bend.stiffness: is -1 N/m, must not be negative",
+        ),
         ("Scene(spheres: [(friction: -0.5)])", "spheres[0].friction: is -0.5 (dimensionless), must not be negative"),
         ("Scene(cloth: (resolution: (4, 4), pins: [Vertex(99)]))", "cloth.pins[0]: Vertex(99) names vertex 99"),
         ("Scene(cloth: (resolution: (70000, 70000)))", "cloth.resolution: grid 70000x70000 needs about"),

@@ -1,0 +1,88 @@
+//! The `cloth` binary as a user runs it.
+
+use std::process::Command;
+
+fn cloth(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_cloth"))
+        .args(args)
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .output()
+        .expect("the cloth binary runs")
+}
+
+fn json(args: &[&str]) -> serde_json::Value {
+    let out = cloth(args);
+    assert!(out.status.success(), "cloth {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+#[test]
+fn run_json_reports_every_documented_field() {
+    let v = json(&["run", "scenes/drape.ron", "--frames", "20", "--grid", "7x13", "--json"]);
+    for key in [
+        "backend",
+        "adapter",
+        "vertices",
+        "springs",
+        "frames",
+        "substeps_per_frame",
+        "simulated_seconds",
+        "max_penetration_m",
+        "nan_count",
+        "final_kinetic_energy_j",
+        "final_centroid_m",
+        "wall_ms_per_frame",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {v}");
+    }
+    assert_eq!(v["backend"], "cpu");
+    assert_eq!(v["vertices"], 91, "--grid 7x13 gives 91 vertices");
+    assert_eq!(v["springs"]["structural"], 7 * 12 + 13 * 6);
+    assert_eq!(v["springs"]["shear"], 2 * 6 * 12);
+    assert_eq!(v["springs"]["bend"], 7 * 11 + 13 * 5);
+    assert_eq!(v["frames"], 20);
+    assert_eq!(v["nan_count"], 0);
+    assert_eq!(v["final_centroid_m"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn run_writes_a_png_of_the_cloth() {
+    let path = std::env::temp_dir().join(format!("cloth-cli-test-{}.png", std::process::id()));
+    let out = cloth(&["run", "scenes/hold.ron", "--frames", "5", "--png", path.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    let _ = std::fs::remove_file(path);
+}
+
+#[test]
+fn check_prints_counts_memory_and_the_bound() {
+    let out = cloth(&["check", "scenes/drape.ron"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(text.contains("1984 structural, 1922 shear, 1920 bend"), "{text}");
+    assert!(text.contains("largest stable substep"), "{text}");
+    assert!(text.contains("MiB on the device"), "{text}");
+}
+
+#[test]
+fn bad_input_gives_a_clear_message_and_no_panic() {
+    let out = cloth(&["run", "--grid", "1x5"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("cloth.resolution[0]: is 1 vertices"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let out = cloth(&["run", "--grid", "12by5"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is not NXxNY"));
+    let out = cloth(&["run", "--backend", "nonesuch"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown backend 'nonesuch'"));
+    let out = cloth(&["check", "no/such/file.ron"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read scene file no/such/file.ron"));
+}
+
+#[test]
+fn backends_lists_the_cpu_reference() {
+    let out = cloth(&["backends"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("cpu ") && text.contains("cpu-f64"), "{text}");
+}
