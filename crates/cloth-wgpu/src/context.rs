@@ -1,0 +1,122 @@
+//! Finding an adapter and opening a device.
+
+use cloth_core::SimError;
+
+use crate::BACKEND_NAME;
+
+/// Which adapter to use.
+#[derive(Clone, Debug, Default)]
+pub struct AdapterChoice {
+    /// Use the first adapter whose name contains this text (case-insensitive); `None` picks the
+    /// best: a discrete GPU, then integrated, virtual, other, and a CPU implementation last.
+    pub name_contains: Option<String>,
+}
+
+impl AdapterChoice {
+    /// The choice from the `CLOTH_ADAPTER` environment variable, if set.
+    pub fn from_env() -> Self {
+        Self { name_contains: std::env::var("CLOTH_ADAPTER").ok().filter(|s| !s.is_empty()) }
+    }
+}
+
+/// A device and queue with a description of the adapter they come from.
+#[derive(Clone, Debug)]
+pub struct GpuContext {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// The adapter, in words: name, backend, type, driver.
+    pub adapter_description: String,
+}
+
+fn describe(info: &wgpu::AdapterInfo) -> String {
+    let driver = if info.driver.is_empty() { String::new() } else { format!(", {} {}", info.driver, info.driver_info) };
+    format!("{} ({:?}, {:?}{})", info.name, info.backend, info.device_type, driver.trim_end())
+}
+
+fn rank(device_type: wgpu::DeviceType) -> u8 {
+    match device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+fn instance() -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    if wgpu::Backends::from_env().is_none() {
+        // Compute needs Vulkan, Metal or DX12; the GL backend cannot run these shaders.
+        desc.backends = wgpu::Backends::PRIMARY;
+    }
+    wgpu::Instance::new(desc)
+}
+
+/// Adapters able to run compute shaders, best first.
+fn compute_adapters() -> Vec<wgpu::Adapter> {
+    let mut adapters: Vec<wgpu::Adapter> = pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all()))
+        .into_iter()
+        .filter(|a| a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS))
+        .collect();
+    adapters.sort_by_key(|a| rank(a.get_info().device_type));
+    adapters
+}
+
+/// The adapters wgpu finds here that can run the simulation, best first, in words.
+///
+/// # Errors
+/// A sentence saying what to install when there is none.
+pub fn list_adapters() -> Result<Vec<String>, String> {
+    let list: Vec<String> = compute_adapters().iter().map(|a| describe(&a.get_info())).collect();
+    if list.is_empty() { Err(no_adapter_reason()) } else { Ok(list) }
+}
+
+fn no_adapter_reason() -> String {
+    "wgpu found no Vulkan, Metal or DX12 adapter with compute shaders; on Debian/Ubuntu install \
+     Mesa's software Vulkan driver (apt-get install mesa-vulkan-drivers libvulkan1) or a GPU driver"
+        .into()
+}
+
+impl GpuContext {
+    /// Opens a device on the chosen adapter, with the largest storage buffers it offers.
+    ///
+    /// # Errors
+    /// [`SimError::Unavailable`] when no adapter matches or the device cannot be opened.
+    pub fn new(choice: &AdapterChoice) -> Result<Self, SimError> {
+        let unavailable = |reason: String| SimError::Unavailable { backend: BACKEND_NAME, reason };
+        let adapters = compute_adapters();
+        let adapter = match &choice.name_contains {
+            None => adapters.into_iter().next().ok_or_else(|| unavailable(no_adapter_reason()))?,
+            Some(wanted) => {
+                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+                adapters
+                    .into_iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&wanted.to_lowercase()))
+                    .ok_or_else(|| unavailable(format!("no adapter named like '{wanted}'; found: {}", names.join(", "))))?
+            }
+        };
+        let offered = adapter.limits();
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: offered.max_storage_buffer_binding_size,
+            max_buffer_size: offered.max_buffer_size,
+            max_storage_buffers_per_shader_stage: offered.max_storage_buffers_per_shader_stage.max(8),
+            max_compute_workgroups_per_dimension: offered.max_compute_workgroups_per_dimension,
+            max_compute_invocations_per_workgroup: offered.max_compute_invocations_per_workgroup,
+            max_compute_workgroup_size_x: offered.max_compute_workgroup_size_x,
+            ..wgpu::Limits::default()
+        };
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("cloth device"),
+            required_features: features,
+            required_limits: limits,
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| unavailable(format!("cannot open a device on {}: {e}", adapter.get_info().name)))?;
+        Ok(Self { device, queue, adapter_description: describe(&adapter.get_info()) })
+    }
+}

@@ -1,0 +1,25 @@
+//! # cloth-wgpu
+//!
+//! The WGSL compute backend of the cloth workbench. [`WgpuSimulator`] implements
+//! [`cloth_core::Simulator`]: every force of the brief is computed by the compute shader
+//! `shaders/wgsl/cloth_step.wgsl`, every parameter reaches it through a bind group, and one
+//! call to `advance` records all its substeps into one command submission.
+//!
+//! The simulator can run on its own device ([`WgpuSimulator::with_options`]) or on a device
+//! the caller already has ([`WgpuSimulator::on_device`]), e.g. eframe's, and exposes its
+//! position buffer ([`WgpuSimulator::position_buffer`]) so the cloth can be drawn straight from
+//! the simulation.
+
+#![warn(missing_docs)]
+
+mod context;
+mod simulator;
+
+pub use context::{AdapterChoice, GpuContext, list_adapters};
+pub use simulator::WgpuSimulator;
+
+/// WGSL source of the substep kernel, from `shaders/wgsl/`.
+pub const STEP_SHADER: &str = include_str!("../../../shaders/wgsl/cloth_step.wgsl");
+
+/// Backend name used by the tools.
+pub const BACKEND_NAME: &str = "wgpu";

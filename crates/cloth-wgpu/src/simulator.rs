@@ -1,0 +1,378 @@
+//! [`WgpuSimulator`]: buffers, the substep pipeline, and the `Simulator` implementation.
+
+use std::sync::{Arc, Mutex};
+
+use cloth_core::layout::{GpuBuffers, GpuSimParams, GpuSphere};
+use cloth_core::{ClothModel, ClothState, Diagnostics, Scene, SimError, Simulator};
+use wgpu::util::DeviceExt;
+
+use crate::context::{AdapterChoice, GpuContext};
+use crate::{BACKEND_NAME, STEP_SHADER};
+
+/// Invocations per workgroup of the substep kernel (the WGSL `WORKGROUP_SIZE` override).
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// The cloth simulated by WGSL compute shaders through wgpu.
+pub struct WgpuSimulator {
+    context: GpuContext,
+    scene: Scene,
+    pipeline: wgpu::ComputePipeline,
+    /// `bind_groups[k]` reads state buffer `k` and writes state buffer `1 - k`.
+    bind_groups: [wgpu::BindGroup; 2],
+    params: wgpu::Buffer,
+    spheres: wgpu::Buffer,
+    positions: [wgpu::Buffer; 2],
+    velocities: [wgpu::Buffer; 2],
+    max_penetration: wgpu::Buffer,
+    /// Which of the two state buffers holds the current state.
+    current: usize,
+    /// `w` of each vertex's position: 1 free, 0 pinned (kept to rebuild positions in `write_state`).
+    free: Vec<f32>,
+    workgroups: (u32, u32),
+    time_s: f64,
+    substeps_run: u64,
+    submissions_last_advance: u32,
+    host_waits_last_advance: u32,
+    device_error: Arc<Mutex<Option<String>>>,
+}
+
+fn device_error(reason: impl Into<String>) -> SimError {
+    SimError::Device { backend: BACKEND_NAME, reason: reason.into() }
+}
+
+impl WgpuSimulator {
+    /// Creates the simulator on its own device, on the adapter `choice` picks.
+    ///
+    /// # Errors
+    /// As [`Simulator::new`].
+    pub fn with_options(scene: &Scene, choice: &AdapterChoice) -> Result<Self, SimError> {
+        scene.validate()?;
+        let context = GpuContext::new(choice)?;
+        Self::on_device(scene, context)
+    }
+
+    /// Creates the simulator on an existing device (e.g. eframe's, to draw from
+    /// [`WgpuSimulator::position_buffer`] without a read-back).
+    ///
+    /// # Errors
+    /// [`SimError::Scene`] for an invalid scene, [`SimError::TooLarge`] when a buffer exceeds the
+    /// device's limits, [`SimError::Device`] when creating the GPU objects fails.
+    pub fn on_device(scene: &Scene, context: GpuContext) -> Result<Self, SimError> {
+        scene.validate()?;
+        let model = ClothModel::new(scene);
+        let data = GpuBuffers::new(&model);
+        check_limits(scene, &data, &context.device.limits())?;
+        let device = &context.device;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom_scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        };
+        let params = init(
+            "cloth params",
+            bytemuck::bytes_of(&data.params),
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        let spheres = init("cloth spheres", bytemuck::cast_slice(&data.spheres), storage);
+        let ranges = init("cloth spring ranges", bytemuck::cast_slice(&data.spring_ranges), storage);
+        let ends = init("cloth spring ends", bytemuck::cast_slice(&data.spring_ends), storage);
+        let positions = [
+            init("cloth positions A", bytemuck::cast_slice(&data.positions), storage | wgpu::BufferUsages::VERTEX),
+            init("cloth positions B", bytemuck::cast_slice(&data.positions), storage | wgpu::BufferUsages::VERTEX),
+        ];
+        let velocities = [
+            init("cloth velocities A", bytemuck::cast_slice(&data.velocities), storage),
+            init("cloth velocities B", bytemuck::cast_slice(&data.velocities), storage),
+        ];
+        let max_penetration = init("cloth max penetration", &[0u8; 4], storage);
+
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("cloth_step.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
+        });
+        let storage_entry = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cloth substep bind group layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(size_of::<GpuSimParams>() as u64),
+                    },
+                    count: None,
+                },
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, true),
+                storage_entry(4, true),
+                storage_entry(5, true),
+                storage_entry(6, false),
+                storage_entry(7, false),
+                storage_entry(8, false),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("cloth substep pipeline layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let mut constants: Vec<(&str, f64)> =
+            scene.effects.shader_constants().into_iter().map(|(name, on)| (name, if on { 1.0 } else { 0.0 })).collect();
+        constants.push(("WORKGROUP_SIZE", WORKGROUP_SIZE as f64));
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("cloth substep pipeline"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("substep"),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
+            cache: None,
+        });
+        let bind_group = |label: &str, from: usize| {
+            let to = 1 - from;
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: spheres.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: ranges.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: ends.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: positions[from].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 5, resource: velocities[from].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 6, resource: positions[to].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 7, resource: velocities[to].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 8, resource: max_penetration.as_entire_binding() },
+                ],
+            })
+        };
+        let bind_groups = [bind_group("cloth substep A -> B", 0), bind_group("cloth substep B -> A", 1)];
+        if let Some(e) = pollster::block_on(oom_scope.pop()) {
+            return Err(device_error(format!("out of device memory while creating the buffers: {e}")));
+        }
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(device_error(format!("creating the GPU objects failed: {e}")));
+        }
+
+        let device_error_slot = Arc::new(Mutex::new(None));
+        let slot = device_error_slot.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            if let Ok(mut s) = slot.lock() {
+                *s = Some(format!("device lost ({reason:?}): {message}"));
+            }
+        });
+        let groups = (data.positions.len() as u32).div_ceil(WORKGROUP_SIZE);
+        let max_x = device.limits().max_compute_workgroups_per_dimension.max(1);
+        let workgroups = if groups <= max_x { (groups, 1) } else { (max_x, groups.div_ceil(max_x)) };
+        Ok(Self {
+            free: data.positions.iter().map(|p| p[3]).collect(),
+            scene: scene.clone(),
+            pipeline,
+            bind_groups,
+            params,
+            spheres,
+            positions,
+            velocities,
+            max_penetration,
+            current: 0,
+            workgroups,
+            time_s: 0.0,
+            substeps_run: 0,
+            submissions_last_advance: 0,
+            host_waits_last_advance: 0,
+            device_error: device_error_slot,
+            context,
+        })
+    }
+
+    /// The buffer holding the current positions (`vec4<f32>` per vertex, xyz in m), valid until
+    /// the next `advance`. Usable as a vertex buffer on the same device.
+    pub fn position_buffer(&self) -> &wgpu::Buffer {
+        &self.positions[self.current]
+    }
+
+    /// The device and queue the simulation runs on.
+    pub fn context(&self) -> &GpuContext {
+        &self.context
+    }
+
+    fn check_device(&self) -> Result<(), SimError> {
+        match self.device_error.lock().ok().and_then(|s| s.clone()) {
+            Some(reason) => Err(device_error(reason)),
+            None => Ok(()),
+        }
+    }
+
+    /// Copies `sizes.len()` buffers into one staging buffer, waits once, and returns the bytes.
+    fn read_back(&mut self, sources: &[&wgpu::Buffer]) -> Result<Vec<Vec<u8>>, SimError> {
+        let device = &self.context.device;
+        let total: u64 = sources.iter().map(|b| b.size()).sum();
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cloth read-back staging"),
+            size: total,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth read-back") });
+        let mut offset = 0;
+        for b in sources {
+            encoder.copy_buffer_to_buffer(b, 0, &staging, offset, b.size());
+            offset += b.size();
+        }
+        self.context.queue.submit([encoder.finish()]);
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| device_error(format!("waiting for the GPU: {e}")))?;
+        self.host_waits_last_advance += 1;
+        rx.recv()
+            .map_err(|_| device_error("the read-back never completed"))?
+            .map_err(|e| device_error(format!("mapping the read-back buffer: {e}")))?;
+        let view = staging.get_mapped_range(..).map_err(|e| device_error(format!("reading the mapped buffer: {e:?}")))?;
+        let mut out = Vec::with_capacity(sources.len());
+        let mut offset = 0usize;
+        for b in sources {
+            out.push(view[offset..offset + b.size() as usize].to_vec());
+            offset += b.size() as usize;
+        }
+        drop(view);
+        staging.unmap();
+        self.check_device()?;
+        Ok(out)
+    }
+}
+
+/// Refuses a scene whose buffers exceed the device's limits, naming the grid, the bytes and the
+/// limit.
+fn check_limits(scene: &Scene, data: &GpuBuffers, limits: &wgpu::Limits) -> Result<(), SimError> {
+    let [nx, ny] = scene.cloth.resolution;
+    let binding_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    for (resource, bytes) in [
+        ("spring-end buffer", (data.spring_ends.len() * 16) as u64),
+        ("position buffer", (data.positions.len() * 16) as u64),
+    ] {
+        if bytes > binding_limit {
+            return Err(SimError::TooLarge {
+                nx,
+                ny,
+                resource: format!("{resource} (max_storage_buffer_binding_size)"),
+                needed_bytes: bytes,
+                limit_bytes: binding_limit,
+            });
+        }
+    }
+    Ok(())
+}
+
+impl Simulator for WgpuSimulator {
+    fn new(scene: &Scene) -> Result<Self, SimError> {
+        Self::with_options(scene, &AdapterChoice::from_env())
+    }
+
+    fn backend_name(&self) -> &'static str {
+        BACKEND_NAME
+    }
+
+    fn adapter_name(&self) -> String {
+        self.context.adapter_description.clone()
+    }
+
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    fn advance(&mut self, frames: u32) -> Result<(), SimError> {
+        self.check_device()?;
+        self.submissions_last_advance = 0;
+        self.host_waits_last_advance = 0;
+        let substeps = self.scene.substeps_per_frame() as u64 * frames as u64;
+        if substeps == 0 {
+            return Ok(());
+        }
+        let device = &self.context.device;
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth frames") });
+        {
+            let mut pass =
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("cloth substeps"), timestamp_writes: None });
+            pass.set_pipeline(&self.pipeline);
+            for _ in 0..substeps {
+                pass.set_bind_group(0, &self.bind_groups[self.current], &[]);
+                pass.dispatch_workgroups(self.workgroups.0, self.workgroups.1, 1);
+                self.current = 1 - self.current;
+            }
+        }
+        self.context.queue.submit([encoder.finish()]);
+        self.submissions_last_advance = 1;
+        // Frees finished work without waiting for the GPU.
+        let _ = device.poll(wgpu::PollType::Poll);
+        let dt = self.scene.substep_dt();
+        for _ in 0..substeps {
+            self.time_s += dt;
+        }
+        self.substeps_run += substeps;
+        Ok(())
+    }
+
+    fn update_parameters(&mut self, scene: &Scene) -> Result<(), SimError> {
+        if let Some(what) = self.scene.rebuild_reason(scene) {
+            return Err(SimError::RebuildRequired { what });
+        }
+        scene.validate()?;
+        let queue = &self.context.queue;
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&GpuSimParams::from_scene(scene)));
+        if scene.effects.contains(cloth_core::Effect::SphereContact) && !scene.spheres.is_empty() {
+            let spheres: Vec<GpuSphere> = scene.spheres.iter().map(GpuSphere::from_spec).collect();
+            queue.write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
+        }
+        self.scene = scene.clone();
+        Ok(())
+    }
+
+    fn read_state(&mut self) -> Result<ClothState, SimError> {
+        let (p, v) = (self.positions[self.current].clone(), self.velocities[self.current].clone());
+        let bytes = self.read_back(&[&p, &v])?;
+        let xyz = |b: &[u8]| bytemuck::cast_slice::<u8, [f32; 4]>(b).iter().map(|q| [q[0], q[1], q[2]]).collect();
+        Ok(ClothState { time_s: self.time_s, positions: xyz(&bytes[0]), velocities: xyz(&bytes[1]) })
+    }
+
+    fn write_state(&mut self, state: &ClothState) -> Result<(), SimError> {
+        cloth_core::simulator::check_state_size(self.free.len(), state)?;
+        let positions: Vec<[f32; 4]> =
+            state.positions.iter().zip(&self.free).map(|(p, &w)| [p[0], p[1], p[2], w]).collect();
+        let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
+        let queue = &self.context.queue;
+        queue.write_buffer(&self.positions[self.current], 0, bytemuck::cast_slice(&positions));
+        queue.write_buffer(&self.velocities[self.current], 0, bytemuck::cast_slice(&velocities));
+        self.time_s = state.time_s;
+        Ok(())
+    }
+
+    fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
+        let (submissions, waits) = (self.submissions_last_advance, self.host_waits_last_advance);
+        let buffer = self.max_penetration.clone();
+        let bytes = self.read_back(&[&buffer])?;
+        // The diagnostics read-back is not part of the frame: report the advance's own counts.
+        self.host_waits_last_advance = waits;
+        let max_penetration = f32::from_bits(u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]));
+        Ok(Diagnostics {
+            max_penetration_m: max_penetration as f64,
+            substeps_run: self.substeps_run,
+            submissions_last_advance: submissions,
+            host_waits_last_advance: waits,
+        })
+    }
+}
