@@ -41,6 +41,12 @@ pub fn all() -> Vec<Backend> {
             create: boxed::<CpuSimulatorF64>,
             adapters: cpu_adapters,
         },
+        Backend {
+            name: cloth_wgpu::BACKEND_NAME,
+            description: "WGSL compute shaders through wgpu (Vulkan, Metal or DX12; lavapipe included)",
+            create: boxed::<cloth_wgpu::WgpuSimulator>,
+            adapters: cloth_wgpu::list_adapters,
+        },
     ]
 }
 

@@ -1,0 +1,134 @@
+//! The conformance harness: every backend compiled in, run through the same cases.
+//!
+//! Cases live in `tests/conformance.rs`, written once against `&dyn`-style factories; the
+//! `conformance!` macro there instantiates each case for each backend listed in [`BACKENDS`],
+//! so a test's name reads `wgpu::drape_short_horizon`.
+//!
+//! * A backend that cannot start here (no adapter, no loader) is **skipped by name with the
+//!   reason**, unless the `CI` environment variable is set: then a missing adapter fails.
+//! * A known per-backend difference is declared in [`EXPECTED_DIFFERENCES`] with its reason; a
+//!   case so declared must fail on that backend, and the suite fails if it starts passing.
+
+use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
+
+/// A backend under test.
+pub struct Backend {
+    /// Its name, as in `cloth backends`.
+    pub name: &'static str,
+    /// Creates a simulator.
+    pub create: fn(&Scene) -> Result<Box<dyn Simulator>, SimError>,
+}
+
+fn boxed<S: Simulator + 'static>(scene: &Scene) -> Result<Box<dyn Simulator>, SimError> {
+    Ok(Box::new(S::new(scene)?))
+}
+
+/// The f32 CPU reference.
+pub const CPU: Backend = Backend { name: "cpu", create: boxed::<CpuSimulator> };
+/// The f64 CPU reference.
+pub const CPU_F64: Backend = Backend { name: "cpu-f64", create: boxed::<CpuSimulatorF64> };
+/// The WGSL backend.
+pub const WGPU: Backend = Backend { name: "wgpu", create: boxed::<cloth_wgpu::WgpuSimulator> };
+
+/// Every backend of this build.
+pub const BACKENDS: &[&Backend] = &[&CPU, &CPU_F64, &WGPU];
+
+/// A difference a backend is known to have on one case, with the reason. The case must fail
+/// there (with any assertion message containing `symptom`).
+pub struct ExpectedDifference {
+    /// Backend name.
+    pub backend: &'static str,
+    /// Only on adapters whose description contains this (empty: every adapter).
+    pub adapter_contains: &'static str,
+    /// Case name.
+    pub case: &'static str,
+    /// Text the failure message contains.
+    pub symptom: &'static str,
+    /// Why the difference is expected.
+    pub reason: &'static str,
+}
+
+/// Known differences.
+pub const EXPECTED_DIFFERENCES: &[ExpectedDifference] = &[
+    ExpectedDifference {
+        backend: "cpu-f64",
+        adapter_contains: "",
+        case: "bit_exact_with_the_f32_reference",
+        symptom: "not bit-exact",
+        reason: "the f64 reference rounds every operation to 53 bits instead of 24: it is the \
+                 high-precision oracle, so its results differ from the f32 ones in the last bits",
+    },
+    ExpectedDifference {
+        backend: "wgpu",
+        adapter_contains: "NVIDIA",
+        case: "bit_exact_with_the_f32_reference",
+        symptom: "not bit-exact",
+        reason: "NVIDIA's compiler contracts a*b+c into fused multiply-adds (one rounding instead of \
+                 two), which WGSL allows; lavapipe does not, and matches the CPU bit for bit",
+    },
+];
+
+/// Creates a simulator, or says why the backend is skipped (and panics under CI).
+pub fn create(backend: &Backend, scene: &Scene) -> Option<Box<dyn Simulator>> {
+    match (backend.create)(scene) {
+        Ok(sim) => Some(sim),
+        Err(SimError::Unavailable { reason, .. }) => {
+            if std::env::var_os("CI").is_some() {
+                panic!("backend {} has no adapter and CI is set, so this fails: {reason}", backend.name);
+            }
+            eprintln!("SKIPPED on backend {}: {reason}", backend.name);
+            None
+        }
+        Err(e) => panic!("backend {} could not start: {e}", backend.name),
+    }
+}
+
+/// Runs one case on one backend, honouring [`EXPECTED_DIFFERENCES`].
+pub fn run_case(backend: &Backend, case_name: &str, case: fn(&Backend)) {
+    let adapter = match create(backend, &small_probe_scene()) {
+        Some(sim) => sim.adapter_name(),
+        None => return,
+    };
+    let expected = EXPECTED_DIFFERENCES
+        .iter()
+        .find(|d| d.backend == backend.name && d.case == case_name && adapter.contains(d.adapter_contains));
+    match expected {
+        None => case(backend),
+        Some(d) => {
+            let result = std::panic::catch_unwind(|| case(backend));
+            match result {
+                Ok(()) => panic!(
+                    "{case_name} was declared to fail on {} ({adapter}) because {}, but it passed: \
+                     remove the expectation from EXPECTED_DIFFERENCES",
+                    backend.name, d.reason
+                ),
+                Err(payload) => {
+                    let message = payload
+                        .downcast_ref::<String>()
+                        .cloned()
+                        .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
+                        .unwrap_or_default();
+                    assert!(
+                        message.contains(d.symptom),
+                        "{case_name} on {} failed as declared, but not with '{}': {message}",
+                        backend.name,
+                        d.symptom
+                    );
+                    eprintln!("expected difference on {} ({adapter}): {} — {}", backend.name, case_name, d.reason);
+                }
+            }
+        }
+    }
+}
+
+fn small_probe_scene() -> Scene {
+    let mut scene = Scene::default();
+    scene.cloth.resolution = [2, 2];
+    scene
+}
+
+/// Loads a scene shipped in `scenes/`.
+pub fn scene(name: &str) -> Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name);
+    Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}

@@ -1,0 +1,359 @@
+//! Conformance cases, written once and run on every backend (see `cloth_conformance`).
+
+use cloth_conformance::{Backend, create, scene};
+use cloth_core::scene::{ClothSpec, Corner, Orientation, Pin, Substeps, TimeSpec};
+use cloth_core::{ClothState, CpuSimulator, CpuSimulatorF64, Effect, Scene, Simulator};
+
+// ---------------------------------------------------------------------------------------------
+// Tolerances.
+//
+// Short horizon, against the f32 CPU reference. Both sides evaluate the same operations in the
+// same order (shaders mirror forces.rs), so what separates them is:
+//  * fused multiply-add contraction and a different sqrt: each at most 1 ulp per operation;
+//  * the spring force amplifies a position error: k (L - L0) loses the leading digits of L,
+//    so a 1-ulp change in a coordinate (2.4e-7 m near 2 m) changes the force by k * 2.4e-7 N.
+// The springs are restoring, so such errors oscillate rather than grow: they stay a small
+// multiple of the ulp of the coordinates over the few hundred substeps before contact.
+// We allow 40 ulps of a 2 m coordinate, 1e-5 m (on lavapipe the GPU is bit-exact; on CPU f64
+// vs f32, 2.5 ulps were seen).
+const F32_TOLERANCE_M: f32 = 1e-5;
+// Against the f64 reference the f32 result also carries its own rounding of every operation,
+// the same order of magnitude again: twice the f32 tolerance.
+const F64_TOLERANCE_M: f32 = 2e-5;
+// Long horizon (seconds, with contact): contact switches on and off at slightly different
+// substeps, so trajectories can separate; we compare physical outcomes. 5 mm is 1% of the
+// default sphere radius.
+const CENTROID_TOLERANCE_M: f64 = 5e-3;
+
+fn run(backend: &Backend, scene: &Scene, frames: u32) -> Option<(ClothState, f64)> {
+    let mut sim = create(backend, scene)?;
+    sim.advance(frames).unwrap();
+    let state = sim.read_state().unwrap();
+    let penetration = sim.diagnostics().unwrap().max_penetration_m;
+    Some((state, penetration))
+}
+
+fn max_difference(a: &ClothState, b: &ClothState) -> f32 {
+    assert_eq!(a.positions.len(), b.positions.len());
+    a.positions.iter().zip(&b.positions).flat_map(|(p, q)| (0..3).map(move |k| (p[k] - q[k]).abs())).fold(0.0, f32::max)
+}
+
+fn reference_f32(scene: &Scene, frames: u32) -> ClothState {
+    let mut sim = CpuSimulator::new(scene).unwrap();
+    sim.advance(frames).unwrap();
+    sim.read_state().unwrap()
+}
+
+fn reference_f64(scene: &Scene, frames: u32) -> ClothState {
+    let mut sim = CpuSimulatorF64::new(scene).unwrap();
+    sim.advance(frames).unwrap();
+    sim.read_state().unwrap()
+}
+
+fn with_grid(mut scene: Scene, resolution: [u32; 2]) -> Scene {
+    scene.cloth.resolution = resolution;
+    scene
+}
+
+/// The short-horizon scenes: square, non-square, pinned, springs-only, and one in contact.
+///
+/// The contact scene stops two frames after the cloth lands (frame 9): a landing cloth buckles,
+/// and which way each wrinkle folds is a bifurcation decided by the last bits, so the f32 and
+/// f64 references are already 0.3 mm apart at frame 13 and centimetres apart at frame 20.
+/// Longer contact runs are compared by outcome (`long_horizon_outcomes_agree`).
+fn short_horizon_scenes() -> Vec<(&'static str, Scene, u32)> {
+    let mut stretched = with_grid(scene("hanging.ron"), [9, 6]);
+    stretched.cloth.pins = vec![];
+    stretched.effects = [Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings].into_iter().collect();
+    stretched.cloth.initial_velocity = [0.3, -0.2, 0.1];
+    vec![
+        ("drape 32x32", scene("drape.ron"), 12),
+        ("drape 7x13", with_grid(scene("drape.ron"), [7, 13]), 12),
+        ("hanging 24x24 pinned", scene("hanging.ron"), 30),
+        ("hanging 13x5 pinned", with_grid(scene("hanging.ron"), [13, 5]), 30),
+        ("hold 24x24 with contact", scene("hold.ron"), 11),
+        ("moving springs-only 9x6", stretched, 30),
+    ]
+}
+
+fn short_horizon_matches_the_references(backend: &Backend) {
+    for (name, scene, frames) in short_horizon_scenes() {
+        let Some((state, penetration)) = run(backend, &scene, frames) else { return };
+        assert_eq!(state.non_finite_count(), 0, "{name}");
+        if name.contains("contact") {
+            assert!(penetration > 0.0, "{name}: the cloth should have reached the sphere");
+        }
+        let d32 = max_difference(&state, &reference_f32(&scene, frames));
+        let d64 = max_difference(&state, &reference_f64(&scene, frames));
+        eprintln!("{}: {name}: {frames} frames, max |x - x_f32| = {d32:.3e} m, |x - x_f64| = {d64:.3e} m", backend.name);
+        assert!(d32 <= F32_TOLERANCE_M, "{name}: differs from the f32 reference by {d32} m");
+        assert!(d64 <= F64_TOLERANCE_M, "{name}: differs from the f64 reference by {d64} m");
+    }
+}
+
+fn bit_exact_with_the_f32_reference(backend: &Backend) {
+    let scene = with_grid(scene("drape.ron"), [7, 13]);
+    let Some((state, _)) = run(backend, &scene, 12) else { return };
+    let reference = reference_f32(&scene, 12);
+    let d = max_difference(&state, &reference);
+    assert!(state.positions == reference.positions, "positions are not bit-exact (max difference {d} m)");
+}
+
+fn is_off_the_sphere(state: &ClothState, scene: &Scene) -> bool {
+    let s = &scene.spheres[0];
+    let near = state.positions.iter().any(|p| {
+        let d: f64 = (0..3).map(|k| (p[k] as f64 - s.center[k]).powi(2)).sum::<f64>().sqrt();
+        d < s.radius * 1.1
+    });
+    !near && state.centroid()[1] < s.center[1] - s.radius
+}
+
+fn long_horizon_outcomes_agree(backend: &Backend) {
+    for name in ["drape.ron", "slide.ron", "hold.ron"] {
+        let scene = scene(name);
+        let frames = scene.time.frames;
+        let Some((state, penetration)) = run(backend, &scene, frames) else { return };
+        let reference = reference_f32(&scene, frames);
+        assert_eq!(state.non_finite_count(), 0, "{name}: NaN");
+        let radius = scene.spheres[0].radius;
+        assert!(penetration < 0.02 * radius, "{name}: max penetration {penetration} m");
+        let off = is_off_the_sphere(&state, &scene);
+        assert_eq!(off, name == "slide.ron", "{name}: off the sphere = {off}, centroid {:?}", state.centroid());
+        if name != "slide.ron" {
+            // Resting outcomes compare closely; a sliding cloth in free fall is compared by verdict.
+            let (c, r) = (state.centroid(), reference.centroid());
+            let d = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f64>().sqrt();
+            eprintln!("{}: {name}: centroid {c:?}, reference {r:?}, distance {d:.3e} m", backend.name);
+            assert!(d < CENTROID_TOLERANCE_M, "{name}: centroid {c:?} is {d} m from the reference {r:?}");
+            assert!(c[1] > scene.spheres[0].center[1], "{name}: rests above the sphere's centre");
+        }
+    }
+}
+
+fn changing_the_grid_changes_the_vertex_count(backend: &Backend) {
+    for (resolution, expected) in [([7, 13], 91), ([16, 9], 144), ([2, 2], 4)] {
+        let scene = with_grid(scene("drape.ron"), resolution);
+        let Some((state, _)) = run(backend, &scene, 1) else { return };
+        assert_eq!(state.positions.len(), expected, "{resolution:?}");
+        assert_eq!(state.velocities.len(), expected, "{resolution:?}");
+    }
+}
+
+fn moving_or_resizing_the_sphere_moves_the_rest_position(backend: &Backend) {
+    let base = with_grid(scene("drape.ron"), [16, 16]);
+    let frames = 150;
+    let rest_height = |scene: &Scene| run(backend, scene, frames).map(|(s, _)| s.centroid()[1]);
+    let Some(h0) = rest_height(&base) else { return };
+    let mut lowered = base.clone();
+    lowered.spheres[0].center[1] -= 0.2;
+    lowered.cloth.center[1] -= 0.2;
+    let mut smaller = base.clone();
+    smaller.spheres[0].radius = 0.35;
+    smaller.spheres[0].center[1] -= 0.15; // same top, so the fall is the same
+    let h_lowered = rest_height(&lowered).unwrap();
+    let h_smaller = rest_height(&smaller).unwrap();
+    assert!((h0 - h_lowered - 0.2).abs() < 0.01, "lowering the sphere by 0.2 m moved the cloth by {} m", h0 - h_lowered);
+    assert!(h_smaller < h0 - 0.02, "a smaller sphere lets the cloth hang lower ({h_smaller} vs {h0})");
+}
+
+fn without_gravity_a_flat_cloth_stays_at_rest(backend: &Backend) {
+    let mut scene = with_grid(scene("drape.ron"), [12, 10]);
+    scene.effects = scene.effects.without(Effect::Gravity);
+    let start = reference_f32(&scene, 0);
+    let Some((state, _)) = run(backend, &scene, 60) else { return };
+    let d = max_difference(&state, &start);
+    // Rest lengths are f64 distances rounded to f32, and the f32 lengths recomputed from f32
+    // positions differ from them by an ulp or so: forces of ~k * 1e-8 N remain. They move a
+    // vertex by far less than a micrometre in a second.
+    assert!(d < 1e-6, "a flat cloth without gravity moved by {d} m");
+}
+
+fn springs_alone_oscillate_about_the_rest_shape(backend: &Backend) {
+    let mut scene = with_grid(scene("hanging.ron"), [8, 8]);
+    scene.cloth.pins = vec![];
+    scene.effects = [Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings].into_iter().collect();
+    let Some(mut sim) = create(backend, &scene) else { return };
+    let rest = sim.read_state().unwrap();
+    let centre = rest.centroid();
+    let size = |s: &ClothState| {
+        s.positions.iter().map(|p| ((p[0] as f64 - centre[0]).powi(2) + (p[1] as f64 - centre[1]).powi(2)).sqrt()).sum::<f64>()
+    };
+    let rest_size = size(&rest);
+    // Stretch the cloth by 10% about its centre, at rest.
+    let mut stretched = rest.clone();
+    for p in &mut stretched.positions {
+        p[0] = (centre[0] + 1.1 * (p[0] as f64 - centre[0])) as f32;
+        p[1] = (centre[1] + 1.1 * (p[1] as f64 - centre[1])) as f32;
+    }
+    sim.write_state(&stretched).unwrap();
+    let mut ratios = Vec::new();
+    for _ in 0..60 {
+        sim.advance(1).unwrap();
+        ratios.push(size(&sim.read_state().unwrap()) / rest_size);
+    }
+    let (lo, hi) = ratios.iter().fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
+    assert!(lo < 0.97, "the stretched cloth contracts past its rest shape (min ratio {lo})");
+    assert!(hi > 1.05, "and swings back out (max ratio {hi} after the first contraction)");
+    let last = sim.read_state().unwrap();
+    let c = last.centroid();
+    assert!((c[0] - centre[0]).abs() < 1e-4 && (c[1] - centre[1]).abs() < 1e-4, "the centroid stays: {c:?}");
+}
+
+/// One substep of `dt` on a hand-built 3×3 cloth with one spring kind, one vertex displaced:
+/// the velocity change gives the force, `F = m Δv / Δt`.
+fn force_on_vertex(backend: &Backend, kind: Effect, vertex: usize, displacement: [f32; 3]) -> Option<[f64; 3]> {
+    let scene = Scene {
+        cloth: ClothSpec {
+            resolution: [3, 3],
+            size: [0.2, 0.2],
+            center: [0.0, 0.0, 0.0],
+            orientation: Orientation::Vertical,
+            mass: cloth_core::scene::Mass::PerVertex(0.01),
+            ..Default::default()
+        },
+        spheres: vec![],
+        effects: [kind].into_iter().collect(),
+        time: TimeSpec { frame_dt: 1e-4, substeps: Substeps::Fixed(1), frames: 1 },
+        ..Default::default()
+    };
+    let mut sim = create(backend, &scene)?;
+    let mut state = sim.read_state().unwrap();
+    for k in 0..3 {
+        state.positions[vertex][k] += displacement[k];
+    }
+    sim.write_state(&state).unwrap();
+    sim.advance(1).unwrap();
+    let v = sim.read_state().unwrap().velocities[vertex];
+    Some([0, 1, 2].map(|k| 0.01 * v[k] as f64 / 1e-4))
+}
+
+/// Hooke's force on vertex at `x` from springs to `neighbours` (positions, rest lengths), by hand.
+fn hooke(x: [f64; 3], k: f64, neighbours: &[([f64; 3], f64)]) -> [f64; 3] {
+    let mut f = [0.0; 3];
+    for (y, rest) in neighbours {
+        let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+        let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        for a in 0..3 {
+            f[a] += k * (l - rest) * d[a] / l;
+        }
+    }
+    f
+}
+
+fn each_spring_kind_alone_gives_hookes_force(backend: &Backend) {
+    // 3x3 vertical grid of spacing h = 0.1 m centred at the origin: vertex (i, j) sits at
+    // ((i-1) h, (j-1) h, 0). The centre (index 4) has 4 structural and 4 shear springs; the
+    // corner (index 0) has 2 bend springs, to (2,0) and (0,2).
+    let h = 0.1;
+    let at = |i: i32, j: i32| [(i - 1) as f64 * h, (j - 1) as f64 * h, 0.0];
+    let defaults = Scene::default().springs;
+    let delta = [0.01f32, 0.004, -0.006];
+    let moved = |p: [f64; 3]| [p[0] + delta[0] as f64, p[1] + delta[1] as f64, p[2] + delta[2] as f64];
+    let diagonal = h * 2f64.sqrt();
+    let cases = [
+        (
+            Effect::StructuralSprings,
+            4,
+            hooke(moved(at(1, 1)), defaults.structural.stiffness, &[(at(0, 1), h), (at(2, 1), h), (at(1, 0), h), (at(1, 2), h)]),
+        ),
+        (
+            Effect::ShearSprings,
+            4,
+            hooke(
+                moved(at(1, 1)),
+                defaults.shear.stiffness,
+                &[(at(0, 0), diagonal), (at(2, 0), diagonal), (at(0, 2), diagonal), (at(2, 2), diagonal)],
+            ),
+        ),
+        (Effect::BendSprings, 0, hooke(moved(at(0, 0)), defaults.bend.stiffness, &[(at(2, 0), 2.0 * h), (at(0, 2), 2.0 * h)])),
+    ];
+    for (kind, vertex, expected) in cases {
+        let Some(force) = force_on_vertex(backend, kind, vertex, delta) else { return };
+        for a in 0..3 {
+            // f32 velocity after one step: relative error ~1e-6 of |F|; allow 1e-3 relative.
+            let scale = expected.iter().map(|x| x.abs()).fold(0.0, f64::max);
+            assert!((force[a] - expected[a]).abs() <= 1e-3 * scale, "{kind:?}: force {force:?}, expected {expected:?}");
+        }
+        // Displacing the centre with only bend springs gives no force: it has none.
+        if kind == Effect::BendSprings {
+            let none = force_on_vertex(backend, kind, 4, delta).unwrap();
+            assert!(none.iter().all(|x| *x == 0.0), "the centre has no bend spring: {none:?}");
+        }
+    }
+}
+
+fn friction_holds_and_its_absence_lets_go(backend: &Backend) {
+    let hold = scene("hold.ron");
+    let mut hold_without_friction = hold.clone();
+    hold_without_friction.effects = hold.effects.without(Effect::Friction);
+    for (name, scene, leaves) in [("hold", &hold, false), ("hold without friction", &hold_without_friction, true)] {
+        let Some((state, _)) = run(backend, scene, scene.time.frames) else { return };
+        assert_eq!(is_off_the_sphere(&state, scene), leaves, "{name}: centroid {:?}", state.centroid());
+    }
+}
+
+fn pinned_vertices_stay_put(backend: &Backend) {
+    let mut scene = with_grid(scene("hanging.ron"), [10, 7]);
+    scene.cloth.pins = vec![Pin::Corner(Corner::TopLeft), Pin::Corner(Corner::TopRight), Pin::GridPoint(4, 3)];
+    let Some(mut sim) = create(backend, &scene) else { return };
+    let start = sim.read_state().unwrap();
+    sim.advance(40).unwrap();
+    let end = sim.read_state().unwrap();
+    for i in [60, 69, 34] {
+        assert_eq!(start.positions[i], end.positions[i], "pinned vertex {i} moved");
+        assert_eq!(end.velocities[i], [0.0; 3]);
+    }
+    assert!(end.centroid()[1] < start.centroid()[1] - 1e-3, "the free vertices fell");
+}
+
+fn state_handover_round_trips_exactly(backend: &Backend) {
+    let scene = with_grid(scene("drape.ron"), [9, 11]);
+    let mut cpu = CpuSimulator::new(&scene).unwrap();
+    cpu.advance(7).unwrap();
+    let state = cpu.read_state().unwrap();
+    let Some(mut sim) = create(backend, &scene) else { return };
+    sim.write_state(&state).unwrap();
+    assert_eq!(sim.read_state().unwrap(), state, "write then read gives the state back exactly");
+}
+
+/// Instantiates every case for one backend, as `mod backend { #[test] fn case() }`.
+macro_rules! cases_for_backend {
+    ($backend:ident, $value:path, [$($case:ident),* $(,)?]) => {
+        mod $backend {
+            $(
+                #[test]
+                fn $case() {
+                    cloth_conformance::run_case(&$value, stringify!($case), super::$case);
+                }
+            )*
+        }
+    };
+}
+
+/// Instantiates every case for every backend.
+macro_rules! conformance {
+    (backends: [$($backend:ident => $value:path),* $(,)?], cases: $cases:tt) => {
+        $( cases_for_backend!($backend, $value, $cases); )*
+    };
+}
+
+conformance! {
+    backends: [
+        cpu => cloth_conformance::CPU,
+        cpu_f64 => cloth_conformance::CPU_F64,
+        wgpu => cloth_conformance::WGPU,
+    ],
+    cases: [
+        short_horizon_matches_the_references,
+        bit_exact_with_the_f32_reference,
+        long_horizon_outcomes_agree,
+        changing_the_grid_changes_the_vertex_count,
+        moving_or_resizing_the_sphere_moves_the_rest_position,
+        without_gravity_a_flat_cloth_stays_at_rest,
+        springs_alone_oscillate_about_the_rest_shape,
+        each_spring_kind_alone_gives_hookes_force,
+        friction_holds_and_its_absence_lets_go,
+        pinned_vertices_stay_put,
+        state_handover_round_trips_exactly,
+    ]
+}
