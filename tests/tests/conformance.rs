@@ -85,7 +85,10 @@ fn short_horizon_matches_the_references(backend: &Backend) {
         }
         let d32 = max_difference(&state, &reference_f32(&scene, frames));
         let d64 = max_difference(&state, &reference_f64(&scene, frames));
-        eprintln!("{}: {name}: {frames} frames, max |x - x_f32| = {d32:.3e} m, |x - x_f64| = {d64:.3e} m", backend.name);
+        eprintln!(
+            "{}: {name}: {frames} frames, max |x - x_f32| = {d32:.3e} m, |x - x_f64| = {d64:.3e} m",
+            backend.name
+        );
         assert!(d32 <= F32_TOLERANCE_M, "{name}: differs from the f32 reference by {d32} m");
         assert!(d64 <= F64_TOLERANCE_M, "{name}: differs from the f64 reference by {d64} m");
     }
@@ -152,7 +155,11 @@ fn moving_or_resizing_the_sphere_moves_the_rest_position(backend: &Backend) {
     smaller.spheres[0].center[1] -= 0.15; // same top, so the fall is the same
     let h_lowered = rest_height(&lowered).unwrap();
     let h_smaller = rest_height(&smaller).unwrap();
-    assert!((h0 - h_lowered - 0.2).abs() < 0.01, "lowering the sphere by 0.2 m moved the cloth by {} m", h0 - h_lowered);
+    assert!(
+        (h0 - h_lowered - 0.2).abs() < 0.01,
+        "lowering the sphere by 0.2 m moved the cloth by {} m",
+        h0 - h_lowered
+    );
     assert!(h_smaller < h0 - 0.02, "a smaller sphere lets the cloth hang lower ({h_smaller} vs {h0})");
 }
 
@@ -176,7 +183,10 @@ fn springs_alone_oscillate_about_the_rest_shape(backend: &Backend) {
     let rest = sim.read_state().unwrap();
     let centre = rest.centroid();
     let size = |s: &ClothState| {
-        s.positions.iter().map(|p| ((p[0] as f64 - centre[0]).powi(2) + (p[1] as f64 - centre[1]).powi(2)).sqrt()).sum::<f64>()
+        s.positions
+            .iter()
+            .map(|p| ((p[0] as f64 - centre[0]).powi(2) + (p[1] as f64 - centre[1]).powi(2)).sqrt())
+            .sum::<f64>()
     };
     let rest_size = size(&rest);
     // Stretch the cloth by 10% about its centre, at rest.
@@ -218,8 +228,8 @@ fn force_on_vertex(backend: &Backend, kind: Effect, vertex: usize, displacement:
     };
     let mut sim = create(backend, &scene)?;
     let mut state = sim.read_state().unwrap();
-    for k in 0..3 {
-        state.positions[vertex][k] += displacement[k];
+    for (coordinate, d) in state.positions[vertex].iter_mut().zip(displacement) {
+        *coordinate += d;
     }
     sim.write_state(&state).unwrap();
     sim.advance(1).unwrap();
@@ -254,7 +264,11 @@ fn each_spring_kind_alone_gives_hookes_force(backend: &Backend) {
         (
             Effect::StructuralSprings,
             4,
-            hooke(moved(at(1, 1)), defaults.structural.stiffness, &[(at(0, 1), h), (at(2, 1), h), (at(1, 0), h), (at(1, 2), h)]),
+            hooke(
+                moved(at(1, 1)),
+                defaults.structural.stiffness,
+                &[(at(0, 1), h), (at(2, 1), h), (at(1, 0), h), (at(1, 2), h)],
+            ),
         ),
         (
             Effect::ShearSprings,
@@ -265,7 +279,11 @@ fn each_spring_kind_alone_gives_hookes_force(backend: &Backend) {
                 &[(at(0, 0), diagonal), (at(2, 0), diagonal), (at(0, 2), diagonal), (at(2, 2), diagonal)],
             ),
         ),
-        (Effect::BendSprings, 0, hooke(moved(at(0, 0)), defaults.bend.stiffness, &[(at(2, 0), 2.0 * h), (at(0, 2), 2.0 * h)])),
+        (
+            Effect::BendSprings,
+            0,
+            hooke(moved(at(0, 0)), defaults.bend.stiffness, &[(at(2, 0), 2.0 * h), (at(0, 2), 2.0 * h)]),
+        ),
     ];
     for (kind, vertex, expected) in cases {
         let Some(force) = force_on_vertex(backend, kind, vertex, delta) else { return };

@@ -19,10 +19,18 @@ struct Package {
     why: &'static str,
 }
 
-/// Every system package the project needs. Later backends add theirs here.
-const PACKAGES: &[Package] = &[];
+/// Every system package the project needs.
+const PACKAGES: &[Package] = &[
+    Package { name: "libvulkan1", why: "the Vulkan loader, used by the wgpu backend" },
+    Package {
+        name: "mesa-vulkan-drivers",
+        why: "lavapipe, Mesa's CPU Vulkan driver: GPU tests run on it without a GPU",
+    },
+    Package { name: "vulkan-tools", why: "vulkaninfo, to print the Vulkan devices before the tests" },
+];
 
 fn main() -> Result<()> {
+    quiet_xdg_runtime_dir();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (task, rest) = args.split_first().map(|(t, r)| (t.as_str(), r)).unwrap_or(("help", &[]));
     match task {
@@ -96,10 +104,43 @@ fn run_main_job(extra: &[String]) -> Result<()> {
 }
 
 fn test() -> Result<()> {
+    print_devices();
     sh(cargo().args(["fmt", "--all", "--", "--check"])).context("formatting differs: run `cargo fmt --all`")?;
     sh(cargo().args(["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"]))?;
     sh(cargo().args(["test", "--workspace"]).env("RUSTDOCFLAGS", "-D warnings"))?;
     sh(cargo().args(["doc", "--no-deps", "--package", "cloth-core"]).env("RUSTDOCFLAGS", "-D warnings"))
+}
+
+/// Prints the Vulkan devices the GPU tests will run on (informational; never fails).
+fn print_devices() {
+    eprintln!("xtask: Vulkan devices (vulkaninfo --summary):");
+    match Command::new("vulkaninfo").arg("--summary").output() {
+        Ok(out) => {
+            let text = String::from_utf8_lossy(&out.stdout);
+            for line in text
+                .lines()
+                .filter(|l| l.contains("deviceName") || l.contains("deviceType") || l.contains("driverInfo"))
+            {
+                eprintln!("    {}", line.trim());
+            }
+        }
+        Err(e) => eprintln!("    vulkaninfo could not run: {e}"),
+    }
+}
+
+/// Mesa warns on every device creation when XDG_RUNTIME_DIR is unset or invalid; give it a
+/// private directory.
+fn quiet_xdg_runtime_dir() {
+    let ok = std::env::var_os("XDG_RUNTIME_DIR").map(|d| std::path::Path::new(&d).is_dir()).unwrap_or(false);
+    if !ok {
+        let dir = std::env::temp_dir().join(format!("cloth-xdg-runtime-{}", std::process::id()));
+        if std::fs::create_dir_all(&dir).is_ok() {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+            // SAFETY: called at start-up, before any thread is spawned.
+            unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+        }
+    }
 }
 
 fn sh(cmd: &mut Command) -> Result<()> {

@@ -2,28 +2,35 @@
 
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
 
+/// Creates a simulator for a scene, on the adapter whose name contains the given text if any.
+pub type Factory = fn(&Scene, Option<&str>) -> Result<Box<dyn Simulator>, SimError>;
+
 /// A backend the CLI can run.
 pub struct Backend {
     /// Name used with `--backend`.
     pub name: &'static str,
     /// One line saying what it is.
     pub description: &'static str,
-    /// Creates a simulator for a scene.
-    pub create: fn(&Scene) -> Result<Box<dyn Simulator>, SimError>,
+    /// Creates a simulator.
+    pub create: Factory,
     /// Lists the adapters this backend can use here, or says why none.
     pub adapters: fn() -> Result<Vec<String>, String>,
 }
 
-fn boxed<S: Simulator + 'static>(scene: &Scene) -> Result<Box<dyn Simulator>, SimError> {
+fn cpu<S: Simulator + 'static>(scene: &Scene, _adapter: Option<&str>) -> Result<Box<dyn Simulator>, SimError> {
     Ok(Box::new(S::new(scene)?))
 }
 
 fn cpu_adapters() -> Result<Vec<String>, String> {
-    Ok(vec![format!("CPU ({} rayon threads)", rayon_threads())])
+    Ok(vec![format!("CPU ({} threads)", std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1))])
 }
 
-fn rayon_threads() -> usize {
-    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+fn wgpu(scene: &Scene, adapter: Option<&str>) -> Result<Box<dyn Simulator>, SimError> {
+    let choice = match adapter {
+        Some(name) => cloth_wgpu::AdapterChoice { name_contains: Some(name.to_string()) },
+        None => cloth_wgpu::AdapterChoice::from_env(),
+    };
+    Ok(Box::new(cloth_wgpu::WgpuSimulator::with_options(scene, &choice)?))
 }
 
 /// Every backend compiled in, the default first.
@@ -32,19 +39,19 @@ pub fn all() -> Vec<Backend> {
         Backend {
             name: "cpu",
             description: "CPU reference stepper in f32 (the oracle GPU results are compared with)",
-            create: boxed::<CpuSimulator>,
+            create: cpu::<CpuSimulator>,
             adapters: cpu_adapters,
         },
         Backend {
             name: "cpu-f64",
             description: "CPU reference stepper in f64 (high-precision oracle)",
-            create: boxed::<CpuSimulatorF64>,
+            create: cpu::<CpuSimulatorF64>,
             adapters: cpu_adapters,
         },
         Backend {
             name: cloth_wgpu::BACKEND_NAME,
             description: "WGSL compute shaders through wgpu (Vulkan, Metal or DX12; lavapipe included)",
-            create: boxed::<cloth_wgpu::WgpuSimulator>,
+            create: wgpu,
             adapters: cloth_wgpu::list_adapters,
         },
     ]

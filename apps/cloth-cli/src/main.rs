@@ -2,9 +2,11 @@
 //!
 //! * `cloth run [SCENE]`: simulate and summarise (text or `--json`), optionally render a PNG;
 //! * `cloth check SCENE`: validate, and print spring counts, memory and the stable substep;
-//! * `cloth backends`: the backends compiled in and the adapters each can use.
+//! * `cloth backends`: the backends compiled in and the adapters each can use;
+//! * `cloth bench`: ms per frame and vertex-substeps per second of each backend.
 
 mod backends;
+mod bench;
 mod render;
 mod report;
 
@@ -41,6 +43,8 @@ enum Command {
     },
     /// List the backends compiled in and the adapters each can use.
     Backends,
+    /// Measure ms per frame and vertex-substeps per second of each backend (prints a table).
+    Bench(bench::BenchArgs),
 }
 
 #[derive(clap::Args)]
@@ -50,6 +54,10 @@ struct RunArgs {
     /// Backend to run on (see `cloth backends`).
     #[arg(long, default_value = "cpu")]
     backend: String,
+    /// GPU backends: use the adapter whose name contains this text (default: the best one;
+    /// the CLOTH_ADAPTER environment variable does the same).
+    #[arg(long)]
+    adapter: Option<String>,
     /// Frames to simulate (default: the scene's `time.frames`).
     #[arg(long)]
     frames: Option<u32>,
@@ -103,6 +111,7 @@ fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Run(args) => run(args),
         Command::Check { scene, grid, substeps } => check(&scene, grid, substeps),
+        Command::Bench(args) => bench::run(args),
         Command::Backends => {
             for b in backends::all() {
                 println!("{:<8} {}", b.name, b.description);
@@ -157,7 +166,8 @@ fn run(args: RunArgs) -> Result<()> {
     let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
     let backend = backends::find(&args.backend)?;
     let frames = args.frames.unwrap_or(scene.time.frames);
-    let mut sim = (backend.create)(&scene).with_context(|| format!("cannot start the {} backend", backend.name))?;
+    let mut sim = (backend.create)(&scene, args.adapter.as_deref())
+        .with_context(|| format!("cannot start the {} backend", backend.name))?;
 
     let progress = if args.json || frames < 30 { ProgressBar::hidden() } else { ProgressBar::new(frames as u64) };
     progress.set_style(
@@ -167,13 +177,14 @@ fn run(args: RunArgs) -> Result<()> {
     );
     progress.set_message(format!("{} on {}", scene.name, sim.backend_name()));
     let start = Instant::now();
-    let chunk = 1;
-    let mut done = 0;
-    while done < frames {
-        let n = chunk.min(frames - done);
-        sim.advance(n).with_context(|| format!("the {} backend failed at frame {done}", backend.name))?;
-        done += n;
-        progress.set_position(done as u64);
+    let mut counts = cloth_core::AdvanceCounts::default();
+    for done in 0..frames {
+        sim.advance(1).with_context(|| format!("the {} backend failed at frame {done}", backend.name))?;
+        let c = sim.last_advance_counts();
+        counts.frames += c.frames;
+        counts.submissions += c.submissions;
+        counts.host_waits += c.host_waits;
+        progress.set_position(done as u64 + 1);
     }
     let state = sim.read_state()?;
     let wall = start.elapsed();
@@ -181,7 +192,9 @@ fn run(args: RunArgs) -> Result<()> {
     let diagnostics = sim.diagnostics()?;
     let model = ClothModel::new(&scene);
     let energy = Energy::of(&model, &state);
-    let report = report::Report::new(&*sim, &model, &state, &diagnostics, &energy, frames, wall);
+    let measured =
+        report::Measured { state: &state, diagnostics: &diagnostics, counts: &counts, energy: &energy, frames, wall };
+    let report = report::Report::new(&*sim, &model, &measured);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

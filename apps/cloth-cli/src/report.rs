@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use cloth_core::{ClothModel, ClothState, Diagnostics, Energy, Simulator};
+use cloth_core::{AdvanceCounts, ClothModel, ClothState, Diagnostics, Energy, Simulator};
 use serde::Serialize;
 
 /// Spring counts by kind.
@@ -11,6 +11,16 @@ pub struct SpringCounts {
     pub structural: usize,
     pub shear: usize,
     pub bend: usize,
+}
+
+/// What a run measured.
+pub struct Measured<'a> {
+    pub state: &'a ClothState,
+    pub diagnostics: &'a Diagnostics,
+    pub counts: &'a AdvanceCounts,
+    pub energy: &'a Energy,
+    pub frames: u32,
+    pub wall: Duration,
 }
 
 /// What `cloth run` reports.
@@ -34,20 +44,15 @@ pub struct Report {
     pub final_total_energy_j: f64,
     pub final_centroid_m: [f64; 3],
     pub wall_ms_per_frame: f64,
+    /// Submissions per frame, counted over the run's `advance` calls.
     pub submissions_per_frame: f64,
+    /// Host waits per frame inside `advance` (the final read-back is not counted).
     pub host_waits_per_frame: f64,
 }
 
 impl Report {
-    pub fn new(
-        sim: &dyn Simulator,
-        model: &ClothModel,
-        state: &ClothState,
-        diagnostics: &Diagnostics,
-        energy: &Energy,
-        frames: u32,
-        wall: Duration,
-    ) -> Self {
+    pub fn new(sim: &dyn Simulator, model: &ClothModel, run: &Measured<'_>) -> Self {
+        let Measured { state, diagnostics, counts, energy, frames, wall } = *run;
         let scene = &model.scene;
         let [structural, shear, bend] = model.spring_counts();
         let min_radius = scene.spheres.iter().map(|s| s.radius).fold(f64::INFINITY, f64::min);
@@ -72,8 +77,8 @@ impl Report {
             final_total_energy_j: energy.total(),
             final_centroid_m: state.centroid(),
             wall_ms_per_frame: wall.as_secs_f64() * 1e3 / frames.max(1) as f64,
-            submissions_per_frame: diagnostics.submissions_last_advance as f64,
-            host_waits_per_frame: diagnostics.host_waits_last_advance as f64,
+            submissions_per_frame: counts.submissions as f64 / frames.max(1) as f64,
+            host_waits_per_frame: counts.host_waits as f64 / frames.max(1) as f64,
         }
     }
 
@@ -100,6 +105,9 @@ impl Report {
             "state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}",
             c[0], c[1], c[2], self.final_kinetic_energy_j, self.nan_count
         );
-        println!("speed       {:.3} ms per frame (wall clock)", self.wall_ms_per_frame);
+        println!(
+            "speed       {:.3} ms per frame (wall clock); {:.2} submissions and {:.2} host waits per frame",
+            self.wall_ms_per_frame, self.submissions_per_frame, self.host_waits_per_frame
+        );
     }
 }

@@ -47,5 +47,5 @@ pub use error::{Problem, SceneError, SimError};
 pub use model::ClothModel;
 pub use reference::{CpuSimulator, CpuSimulatorF64, ReferenceSimulator};
 pub use scene::{Scene, Substeps};
-pub use simulator::{ClothState, Diagnostics, Simulator};
+pub use simulator::{AdvanceCounts, ClothState, Diagnostics, Simulator};
 pub use springs::SpringKind;

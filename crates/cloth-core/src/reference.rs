@@ -288,11 +288,6 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
-        Ok(Diagnostics {
-            max_penetration_m: self.max_penetration.to_f64_lossy(),
-            substeps_run: self.substeps_run,
-            submissions_last_advance: 0,
-            host_waits_last_advance: 0,
-        })
+        Ok(Diagnostics { max_penetration_m: self.max_penetration.to_f64_lossy(), substeps_run: self.substeps_run })
     }
 }

@@ -45,10 +45,17 @@ pub struct Diagnostics {
     pub max_penetration_m: f64,
     /// Substeps run since creation.
     pub substeps_run: u64,
-    /// Command submissions to the device during the last `advance` (0 on the CPU).
-    pub submissions_last_advance: u32,
-    /// Times the host waited for the device during the last `advance` (0 on the CPU).
-    pub host_waits_last_advance: u32,
+}
+
+/// What the last [`Simulator::advance`] cost in host–device traffic (all zero on the CPU).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AdvanceCounts {
+    /// Frames advanced.
+    pub frames: u32,
+    /// Command submissions to the device.
+    pub submissions: u32,
+    /// Times the host waited for the device.
+    pub host_waits: u32,
 }
 
 /// A cloth simulator. One frame is `scene.substeps_per_frame()` substeps of
@@ -104,6 +111,11 @@ pub trait Simulator {
     /// # Errors
     /// [`SimError::Device`] when the read-back fails.
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError>;
+
+    /// Submissions and host waits of the last `advance` (no device access).
+    fn last_advance_counts(&self) -> AdvanceCounts {
+        AdvanceCounts::default()
+    }
 }
 
 impl Scene {

@@ -94,7 +94,9 @@ impl GpuContext {
                 adapters
                     .into_iter()
                     .find(|a| a.get_info().name.to_lowercase().contains(&wanted.to_lowercase()))
-                    .ok_or_else(|| unavailable(format!("no adapter named like '{wanted}'; found: {}", names.join(", "))))?
+                    .ok_or_else(|| {
+                        unavailable(format!("no adapter named like '{wanted}'; found: {}", names.join(", ")))
+                    })?
             }
         };
         let offered = adapter.limits();

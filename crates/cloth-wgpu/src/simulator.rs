@@ -2,8 +2,8 @@
 
 use std::sync::{Arc, Mutex};
 
-use cloth_core::layout::{GpuBuffers, GpuSimParams, GpuSphere};
-use cloth_core::{ClothModel, ClothState, Diagnostics, Scene, SimError, Simulator};
+use cloth_core::layout::{GpuBuffers, GpuSimParams, GpuSphere, MemoryEstimate};
+use cloth_core::{AdvanceCounts, ClothModel, ClothState, Diagnostics, Scene, SimError, Simulator};
 use wgpu::util::DeviceExt;
 
 use crate::context::{AdapterChoice, GpuContext};
@@ -31,8 +31,7 @@ pub struct WgpuSimulator {
     workgroups: (u32, u32),
     time_s: f64,
     substeps_run: u64,
-    submissions_last_advance: u32,
-    host_waits_last_advance: u32,
+    last_advance: AdvanceCounts,
     device_error: Arc<Mutex<Option<String>>>,
 }
 
@@ -59,9 +58,9 @@ impl WgpuSimulator {
     /// device's limits, [`SimError::Device`] when creating the GPU objects fails.
     pub fn on_device(scene: &Scene, context: GpuContext) -> Result<Self, SimError> {
         scene.validate()?;
+        check_limits(scene, &context.device.limits())?;
         let model = ClothModel::new(scene);
         let data = GpuBuffers::new(&model);
-        check_limits(scene, &data, &context.device.limits())?;
         let device = &context.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom_scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -191,8 +190,7 @@ impl WgpuSimulator {
             workgroups,
             time_s: 0.0,
             substeps_run: 0,
-            submissions_last_advance: 0,
-            host_waits_last_advance: 0,
+            last_advance: AdvanceCounts::default(),
             device_error: device_error_slot,
             context,
         })
@@ -226,7 +224,8 @@ impl WgpuSimulator {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth read-back") });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth read-back") });
         let mut offset = 0;
         for b in sources {
             encoder.copy_buffer_to_buffer(b, 0, &staging, offset, b.size());
@@ -237,12 +236,14 @@ impl WgpuSimulator {
         staging.map_async(wgpu::MapMode::Read, .., move |r| {
             let _ = tx.send(r);
         });
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| device_error(format!("waiting for the GPU: {e}")))?;
-        self.host_waits_last_advance += 1;
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| device_error(format!("waiting for the GPU: {e}")))?;
         rx.recv()
             .map_err(|_| device_error("the read-back never completed"))?
             .map_err(|e| device_error(format!("mapping the read-back buffer: {e}")))?;
-        let view = staging.get_mapped_range(..).map_err(|e| device_error(format!("reading the mapped buffer: {e:?}")))?;
+        let view =
+            staging.get_mapped_range(..).map_err(|e| device_error(format!("reading the mapped buffer: {e:?}")))?;
         let mut out = Vec::with_capacity(sources.len());
         let mut offset = 0usize;
         for b in sources {
@@ -256,24 +257,20 @@ impl WgpuSimulator {
     }
 }
 
-/// Refuses a scene whose buffers exceed the device's limits, naming the grid, the bytes and the
-/// limit.
-fn check_limits(scene: &Scene, data: &GpuBuffers, limits: &wgpu::Limits) -> Result<(), SimError> {
+/// Refuses a scene whose largest buffer exceeds the device's limits, naming the grid, the bytes
+/// and the limit. Uses the closed-form estimate, so nothing is built for a scene that cannot fit.
+fn check_limits(scene: &Scene, limits: &wgpu::Limits) -> Result<(), SimError> {
     let [nx, ny] = scene.cloth.resolution;
     let binding_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-    for (resource, bytes) in [
-        ("spring-end buffer", (data.spring_ends.len() * 16) as u64),
-        ("position buffer", (data.positions.len() * 16) as u64),
-    ] {
-        if bytes > binding_limit {
-            return Err(SimError::TooLarge {
-                nx,
-                ny,
-                resource: format!("{resource} (max_storage_buffer_binding_size)"),
-                needed_bytes: bytes,
-                limit_bytes: binding_limit,
-            });
-        }
+    let needed = MemoryEstimate::of(scene).largest_buffer_bytes;
+    if needed > binding_limit {
+        return Err(SimError::TooLarge {
+            nx,
+            ny,
+            resource: "storage buffer (the device's max_storage_buffer_binding_size)".into(),
+            needed_bytes: needed,
+            limit_bytes: binding_limit,
+        });
     }
     Ok(())
 }
@@ -297,17 +294,19 @@ impl Simulator for WgpuSimulator {
 
     fn advance(&mut self, frames: u32) -> Result<(), SimError> {
         self.check_device()?;
-        self.submissions_last_advance = 0;
-        self.host_waits_last_advance = 0;
+        self.last_advance = AdvanceCounts { frames, submissions: 0, host_waits: 0 };
         let substeps = self.scene.substeps_per_frame() as u64 * frames as u64;
         if substeps == 0 {
             return Ok(());
         }
         let device = &self.context.device;
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth frames") });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth frames") });
         {
-            let mut pass =
-                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("cloth substeps"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("cloth substeps"),
+                timestamp_writes: None,
+            });
             pass.set_pipeline(&self.pipeline);
             for _ in 0..substeps {
                 pass.set_bind_group(0, &self.bind_groups[self.current], &[]);
@@ -316,7 +315,7 @@ impl Simulator for WgpuSimulator {
             }
         }
         self.context.queue.submit([encoder.finish()]);
-        self.submissions_last_advance = 1;
+        self.last_advance.submissions = 1;
         // Frees finished work without waiting for the GPU.
         let _ = device.poll(wgpu::PollType::Poll);
         let dt = self.scene.substep_dt();
@@ -362,17 +361,31 @@ impl Simulator for WgpuSimulator {
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
-        let (submissions, waits) = (self.submissions_last_advance, self.host_waits_last_advance);
         let buffer = self.max_penetration.clone();
         let bytes = self.read_back(&[&buffer])?;
-        // The diagnostics read-back is not part of the frame: report the advance's own counts.
-        self.host_waits_last_advance = waits;
         let max_penetration = f32::from_bits(u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]));
-        Ok(Diagnostics {
-            max_penetration_m: max_penetration as f64,
-            substeps_run: self.substeps_run,
-            submissions_last_advance: submissions,
-            host_waits_last_advance: waits,
-        })
+        Ok(Diagnostics { max_penetration_m: max_penetration as f64, substeps_run: self.substeps_run })
+    }
+
+    fn last_advance_counts(&self) -> AdvanceCounts {
+        self.last_advance
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_grid_beyond_the_binding_limit_is_refused_with_the_numbers() {
+        let mut scene = Scene::default();
+        scene.cloth.resolution = [1024, 1024];
+        let limits = wgpu::Limits::default(); // 128 MiB bindings
+        let err = check_limits(&scene, &limits).unwrap_err().to_string();
+        assert!(err.contains("grid 1024x1024 needs 200998976 bytes"), "{err}");
+        assert!(err.contains("the device allows 134217728"), "{err}");
+        assert!(err.contains("use a smaller grid"), "{err}");
+        scene.cloth.resolution = [512, 512];
+        assert!(check_limits(&scene, &limits).is_ok());
     }
 }
