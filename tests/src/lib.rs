@@ -30,8 +30,11 @@ pub const CPU_F64: Backend = Backend { name: "cpu-f64", create: boxed::<CpuSimul
 /// The WGSL backend.
 pub const WGPU: Backend = Backend { name: "wgpu", create: boxed::<cloth_wgpu::WgpuSimulator> };
 
+/// The GLSL/SPIR-V backend.
+pub const VULKANO: Backend = Backend { name: "vulkano", create: boxed::<cloth_vulkano::VulkanoSimulator> };
+
 /// Every backend of this build.
-pub const BACKENDS: &[&Backend] = &[&CPU, &CPU_F64, &WGPU];
+pub const BACKENDS: &[&Backend] = &[&CPU, &CPU_F64, &WGPU, &VULKANO];
 
 /// A difference a backend is known to have on one case, with the reason. The case must fail
 /// there (with any assertion message containing `symptom`).
@@ -57,6 +60,14 @@ pub const EXPECTED_DIFFERENCES: &[ExpectedDifference] = &[
         symptom: "not bit-exact",
         reason: "the f64 reference rounds every operation to 53 bits instead of 24: it is the \
                  high-precision oracle, so its results differ from the f32 ones in the last bits",
+    },
+    ExpectedDifference {
+        backend: "vulkano",
+        adapter_contains: "NVIDIA",
+        case: "bit_exact_with_the_f32_reference",
+        symptom: "not bit-exact",
+        reason: "NVIDIA's compiler contracts a*b+c into fused multiply-adds (one rounding instead of \
+                 two), which GLSL allows without `precise`; lavapipe does not",
     },
     ExpectedDifference {
         backend: "wgpu",

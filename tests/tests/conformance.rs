@@ -360,6 +360,7 @@ conformance! {
         cpu => cloth_conformance::CPU,
         cpu_f64 => cloth_conformance::CPU_F64,
         wgpu => cloth_conformance::WGPU,
+        vulkano => cloth_conformance::VULKANO,
     ],
     cases: [
         short_horizon_matches_the_references,
@@ -374,4 +375,15 @@ conformance! {
         pinned_vertices_stay_put,
         state_handover_round_trips_exactly,
     ]
+}
+
+/// The same scene on the two GPU backends agrees within the f32 tolerance after a few frames.
+#[test]
+fn wgpu_and_vulkano_agree() {
+    for (name, scene, frames) in short_horizon_scenes() {
+        let Some((a, _)) = run(&cloth_conformance::WGPU, &scene, frames) else { return };
+        let Some((b, _)) = run(&cloth_conformance::VULKANO, &scene, frames) else { return };
+        let d = max_difference(&a, &b);
+        assert!(d <= F32_TOLERANCE_M, "{name}: wgpu and vulkano differ by {d} m after {frames} frames");
+    }
 }

@@ -27,6 +27,11 @@ const PACKAGES: &[Package] = &[
         why: "lavapipe, Mesa's CPU Vulkan driver: GPU tests run on it without a GPU",
     },
     Package { name: "vulkan-tools", why: "vulkaninfo, to print the Vulkan devices before the tests" },
+    Package { name: "glslc", why: "compiles the GLSL shaders of the vulkano backend to SPIR-V at build time" },
+    Package {
+        name: "vulkan-validationlayers",
+        why: "the Khronos validation layer: debug test runs of the vulkano backend fail on any message",
+    },
 ];
 
 fn main() -> Result<()> {

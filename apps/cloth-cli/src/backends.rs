@@ -33,6 +33,11 @@ fn wgpu(scene: &Scene, adapter: Option<&str>) -> Result<Box<dyn Simulator>, SimE
     Ok(Box::new(cloth_wgpu::WgpuSimulator::with_options(scene, &choice)?))
 }
 
+fn vulkano(scene: &Scene, adapter: Option<&str>) -> Result<Box<dyn Simulator>, SimError> {
+    let from_env = std::env::var("CLOTH_ADAPTER").ok().filter(|s| !s.is_empty());
+    Ok(Box::new(cloth_vulkano::VulkanoSimulator::with_adapter(scene, adapter.or(from_env.as_deref()))?))
+}
+
 /// Every backend compiled in, the default first.
 pub fn all() -> Vec<Backend> {
     vec![
@@ -53,6 +58,12 @@ pub fn all() -> Vec<Backend> {
             description: "WGSL compute shaders through wgpu (Vulkan, Metal or DX12; lavapipe included)",
             create: wgpu,
             adapters: cloth_wgpu::list_adapters,
+        },
+        Backend {
+            name: cloth_vulkano::BACKEND_NAME,
+            description: "GLSL compute shaders compiled to SPIR-V, through vulkano (Vulkan; lavapipe included)",
+            create: vulkano,
+            adapters: cloth_vulkano::list_devices,
         },
     ]
 }

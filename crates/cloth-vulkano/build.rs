@@ -1,0 +1,34 @@
+//! Compiles the GLSL compute shaders of `shaders/glsl/` to SPIR-V with `glslc`.
+//!
+//! `glslc` comes from the Debian/Ubuntu package `glslc` (or the Vulkan SDK); `cargo xtask setup`
+//! installs it. Without it the build stops with a message saying so.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn main() {
+    let glsl = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap()).join("../../shaders/glsl");
+    let out = PathBuf::from(std::env::var("OUT_DIR").unwrap());
+    let glslc = std::env::var("GLSLC").unwrap_or_else(|_| "glslc".into());
+    for entry in std::fs::read_dir(&glsl).expect("shaders/glsl exists") {
+        let path = entry.expect("readable shaders/glsl").path();
+        println!("cargo:rerun-if-changed={}", path.display());
+    }
+    println!("cargo:rerun-if-env-changed=GLSLC");
+    let status = Command::new(&glslc)
+        .args(["--target-env=vulkan1.1", "-O", "-I"])
+        .arg(&glsl)
+        .arg(glsl.join("cloth_step.comp"))
+        .arg("-o")
+        .arg(out.join("cloth_step.spv"))
+        .status();
+    match status {
+        Ok(s) if s.success() => {}
+        Ok(s) => panic!("glslc failed ({s}) compiling shaders/glsl/cloth_step.comp: see its message above"),
+        Err(e) => panic!(
+            "cannot run `{glslc}` ({e}): the vulkano backend compiles its GLSL shaders with glslc. \
+             Install it with `apt-get install glslc` (or run `cargo xtask setup`), or point the GLSLC \
+             environment variable at a glslc binary."
+        ),
+    }
+}

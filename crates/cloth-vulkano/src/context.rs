@@ -1,0 +1,185 @@
+//! Loading Vulkan, choosing a physical device, opening a device; validation messages.
+
+use std::sync::{Arc, Mutex};
+
+use cloth_core::SimError;
+use vulkano::VulkanLibrary;
+use vulkano::device::physical::{PhysicalDevice, PhysicalDeviceType};
+use vulkano::device::{Device, DeviceCreateInfo, Queue, QueueCreateInfo, QueueFlags};
+use vulkano::instance::debug::{
+    DebugUtilsMessageSeverity, DebugUtilsMessageType, DebugUtilsMessengerCallback, DebugUtilsMessengerCreateInfo,
+};
+use vulkano::instance::{Instance, InstanceCreateFlags, InstanceCreateInfo, InstanceExtensions};
+
+use crate::BACKEND_NAME;
+
+const VALIDATION_LAYER: &str = "VK_LAYER_KHRONOS_validation";
+
+/// An open device with its compute queue.
+pub struct VulkanContext {
+    /// The device.
+    pub device: Arc<Device>,
+    /// A queue that supports compute.
+    pub queue: Arc<Queue>,
+    /// The physical device, in words.
+    pub description: String,
+    /// Whether the Khronos validation layer is enabled (debug builds, when it is installed).
+    pub validation: bool,
+    /// Validation messages (warnings and errors) received so far.
+    pub messages: Arc<Mutex<Vec<String>>>,
+}
+
+fn unavailable(reason: impl Into<String>) -> SimError {
+    SimError::Unavailable { backend: BACKEND_NAME, reason: reason.into() }
+}
+
+fn describe(p: &PhysicalDevice) -> String {
+    let props = p.properties();
+    let driver = props.driver_info.clone().unwrap_or_default();
+    format!("{} ({:?}, Vulkan {}, {})", props.device_name, props.device_type, p.api_version(), driver.trim())
+}
+
+fn rank(t: PhysicalDeviceType) -> u8 {
+    match t {
+        PhysicalDeviceType::DiscreteGpu => 0,
+        PhysicalDeviceType::IntegratedGpu => 1,
+        PhysicalDeviceType::VirtualGpu => 2,
+        PhysicalDeviceType::Other => 3,
+        PhysicalDeviceType::Cpu => 4,
+        _ => 5,
+    }
+}
+
+fn load_library() -> Result<Arc<VulkanLibrary>, SimError> {
+    VulkanLibrary::new().map_err(|e| {
+        unavailable(format!(
+            "cannot load the Vulkan loader ({e}); on Debian/Ubuntu install it with \
+             `apt-get install libvulkan1 mesa-vulkan-drivers` (mesa-vulkan-drivers gives lavapipe, a CPU driver)"
+        ))
+    })
+}
+
+/// Creates an instance; with `validation`, enables the Khronos layer (if installed) and routes its
+/// warnings and errors into `messages`. Returns whether the layer was enabled.
+fn create_instance(validation: bool, messages: &Arc<Mutex<Vec<String>>>) -> Result<(Arc<Instance>, bool), SimError> {
+    let library = load_library()?;
+    let layer_installed = validation
+        && library.layer_properties().map(|mut layers| layers.any(|l| l.name() == VALIDATION_LAYER)).unwrap_or(false);
+    let mut info = InstanceCreateInfo {
+        flags: InstanceCreateFlags::ENUMERATE_PORTABILITY,
+        application_name: Some("cloth workbench".into()),
+        ..Default::default()
+    };
+    if layer_installed {
+        info.enabled_layers = vec![VALIDATION_LAYER.into()];
+        info.enabled_extensions = InstanceExtensions { ext_debug_utils: true, ..InstanceExtensions::empty() };
+        let sink = messages.clone();
+        // SAFETY: the callback only formats the message and pushes it into a Vec; it makes no
+        // Vulkan call.
+        let callback = unsafe {
+            DebugUtilsMessengerCallback::new(move |severity, _ty, data| {
+                if let Ok(mut m) = sink.lock() {
+                    m.push(format!("{severity:?}: {}", data.message));
+                }
+            })
+        };
+        info.debug_utils_messengers = vec![DebugUtilsMessengerCreateInfo {
+            message_severity: DebugUtilsMessageSeverity::ERROR | DebugUtilsMessageSeverity::WARNING,
+            message_type: DebugUtilsMessageType::GENERAL
+                | DebugUtilsMessageType::VALIDATION
+                | DebugUtilsMessageType::PERFORMANCE,
+            ..DebugUtilsMessengerCreateInfo::user_callback(callback)
+        }];
+    }
+    let instance =
+        Instance::new(library, info).map_err(|e| unavailable(format!("cannot create a Vulkan instance: {e}")))?;
+    Ok((instance, layer_installed))
+}
+
+/// Physical devices with a compute queue, best first, with the queue family index.
+fn compute_devices(instance: &Arc<Instance>) -> Result<Vec<(Arc<PhysicalDevice>, u32)>, SimError> {
+    let mut devices: Vec<(Arc<PhysicalDevice>, u32)> = instance
+        .enumerate_physical_devices()
+        .map_err(|e| unavailable(format!("cannot list Vulkan devices: {e}")))?
+        .filter_map(|p| {
+            let family =
+                p.queue_family_properties().iter().position(|q| q.queue_flags.intersects(QueueFlags::COMPUTE))?;
+            Some((p, family as u32))
+        })
+        .collect();
+    devices.sort_by_key(|(p, _)| rank(p.properties().device_type));
+    Ok(devices)
+}
+
+/// The Vulkan devices vulkano finds here, best first, in words.
+///
+/// # Errors
+/// A sentence saying what to install when there is none.
+pub fn list_devices() -> Result<Vec<String>, String> {
+    let messages = Arc::new(Mutex::new(Vec::new()));
+    let (instance, _) = create_instance(false, &messages).map_err(|e| e.to_string())?;
+    let devices = compute_devices(&instance).map_err(|e| e.to_string())?;
+    if devices.is_empty() {
+        return Err(no_device_reason());
+    }
+    Ok(devices.iter().map(|(p, _)| describe(p)).collect())
+}
+
+fn no_device_reason() -> String {
+    "the Vulkan loader found no device with a compute queue; install a GPU driver, or Mesa's CPU \
+     driver with `apt-get install mesa-vulkan-drivers`"
+        .into()
+}
+
+impl VulkanContext {
+    /// Opens the best device (a discrete GPU first, lavapipe last), or the first whose name
+    /// contains `name_contains`. In debug builds the Khronos validation layer is enabled when
+    /// installed.
+    ///
+    /// # Errors
+    /// [`SimError::Unavailable`] without a loader, without a device, or when none matches.
+    pub fn new(name_contains: Option<&str>) -> Result<Self, SimError> {
+        let messages = Arc::new(Mutex::new(Vec::new()));
+        let (instance, validation) = create_instance(cfg!(debug_assertions), &messages)?;
+        let devices = compute_devices(&instance)?;
+        let (physical, family) = match name_contains {
+            None => devices.into_iter().next().ok_or_else(|| unavailable(no_device_reason()))?,
+            Some(wanted) => {
+                let names: Vec<String> = devices.iter().map(|(p, _)| p.properties().device_name.clone()).collect();
+                devices
+                    .into_iter()
+                    .find(|(p, _)| p.properties().device_name.to_lowercase().contains(&wanted.to_lowercase()))
+                    .ok_or_else(|| {
+                        unavailable(format!("no device named like '{wanted}'; found: {}", names.join(", ")))
+                    })?
+            }
+        };
+        let description = describe(&physical);
+        let (device, mut queues) = Device::new(
+            physical,
+            DeviceCreateInfo {
+                queue_create_infos: vec![QueueCreateInfo { queue_family_index: family, ..Default::default() }],
+                ..Default::default()
+            },
+        )
+        .map_err(|e| unavailable(format!("cannot open {description}: {e}")))?;
+        let queue = queues.next().ok_or_else(|| unavailable("the device has no queue"))?;
+        Ok(Self { device, queue, description, validation, messages })
+    }
+
+    /// Fails with the validation messages received so far, if any.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] listing the messages.
+    pub fn check_validation(&self) -> Result<(), SimError> {
+        let messages = self.messages.lock().map(|m| m.clone()).unwrap_or_default();
+        if messages.is_empty() {
+            Ok(())
+        } else {
+            Err(SimError::Device {
+                backend: BACKEND_NAME,
+                reason: format!("Vulkan validation: {}", messages.join("; ")),
+            })
+        }
+    }
+}

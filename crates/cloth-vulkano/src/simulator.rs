@@ -1,0 +1,431 @@
+//! [`VulkanoSimulator`]: buffers, the specialized substep pipeline, and the `Simulator`
+//! implementation.
+
+use std::sync::Arc;
+
+use cloth_core::layout::{GpuBuffers, GpuSimParams, GpuSphere, MemoryEstimate};
+use cloth_core::{AdvanceCounts, ClothModel, ClothState, Diagnostics, Scene, SimError, Simulator};
+use vulkano::buffer::{Buffer, BufferContents, BufferCreateInfo, BufferUsage, Subbuffer};
+use vulkano::command_buffer::allocator::StandardCommandBufferAllocator;
+use vulkano::command_buffer::{AutoCommandBufferBuilder, CommandBufferUsage, CopyBufferInfo, PrimaryAutoCommandBuffer};
+use vulkano::descriptor_set::allocator::StandardDescriptorSetAllocator;
+use vulkano::descriptor_set::{DescriptorSet, WriteDescriptorSet};
+use vulkano::memory::allocator::{AllocationCreateInfo, MemoryTypeFilter, StandardMemoryAllocator};
+use vulkano::pipeline::compute::ComputePipelineCreateInfo;
+use vulkano::pipeline::layout::PipelineDescriptorSetLayoutCreateInfo;
+use vulkano::pipeline::{ComputePipeline, Pipeline, PipelineBindPoint, PipelineLayout, PipelineShaderStageCreateInfo};
+use vulkano::shader::{ShaderModule, ShaderModuleCreateInfo, SpecializationConstant};
+use vulkano::sync::GpuFuture;
+use vulkano::sync::future::FenceSignalFuture;
+
+use crate::context::VulkanContext;
+use crate::{BACKEND_NAME, STEP_SPIRV};
+
+/// Invocations per workgroup (specialization constant [`WORKGROUP_SIZE_CONSTANT_ID`]).
+pub const WORKGROUP_SIZE: u32 = 64;
+/// Specialization-constant id of the workgroup size; ids `0..8` are the effects, in
+/// `cloth_core::Effect::ALL` order.
+pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 8;
+
+type State = Subbuffer<[[f32; 4]]>;
+
+/// The cloth simulated by GLSL compute shaders (SPIR-V) through vulkano.
+pub struct VulkanoSimulator {
+    context: VulkanContext,
+    scene: Scene,
+    pipeline: Arc<ComputePipeline>,
+    /// `sets[k]` reads state buffer `k` and writes state buffer `1 - k`.
+    sets: [Arc<DescriptorSet>; 2],
+    params: Subbuffer<GpuSimParams>,
+    spheres: Subbuffer<[GpuSphere]>,
+    positions: [State; 2],
+    velocities: [State; 2],
+    max_penetration: Subbuffer<[u32]>,
+    memory: Arc<StandardMemoryAllocator>,
+    commands: Arc<StandardCommandBufferAllocator>,
+    /// The last submission, if not yet waited for.
+    in_flight: Option<FenceSignalFuture<Box<dyn GpuFuture>>>,
+    /// Parameters to write at the start of the next command buffer.
+    pending_parameters: Option<(GpuSimParams, Vec<GpuSphere>)>,
+    current: usize,
+    free: Vec<f32>,
+    workgroups: [u32; 3],
+    time_s: f64,
+    substeps_run: u64,
+    last_advance: AdvanceCounts,
+}
+
+fn device_error(reason: impl std::fmt::Display) -> SimError {
+    SimError::Device { backend: BACKEND_NAME, reason: reason.to_string() }
+}
+
+impl VulkanoSimulator {
+    /// Creates the simulator on the best device, or the first whose name contains `adapter`.
+    ///
+    /// # Errors
+    /// As [`Simulator::new`].
+    pub fn with_adapter(scene: &Scene, adapter: Option<&str>) -> Result<Self, SimError> {
+        scene.validate()?;
+        let context = VulkanContext::new(adapter)?;
+        Self::on_context(scene, context)
+    }
+
+    /// Creates the simulator on an open device.
+    ///
+    /// # Errors
+    /// [`SimError::TooLarge`] beyond `maxStorageBufferRange`, [`SimError::Device`] when creating
+    /// the GPU objects fails.
+    pub fn on_context(scene: &Scene, context: VulkanContext) -> Result<Self, SimError> {
+        scene.validate()?;
+        let device = context.device.clone();
+        let properties = device.physical_device().properties();
+        let limit = properties.max_storage_buffer_range as u64;
+        let needed = MemoryEstimate::of(scene).largest_buffer_bytes;
+        if needed > limit {
+            let [nx, ny] = scene.cloth.resolution;
+            return Err(SimError::TooLarge {
+                nx,
+                ny,
+                resource: "storage buffer (the device's maxStorageBufferRange)".into(),
+                needed_bytes: needed,
+                limit_bytes: limit,
+            });
+        }
+        let model = ClothModel::new(scene);
+        let data = GpuBuffers::new(&model);
+        let memory = Arc::new(StandardMemoryAllocator::new_default(device.clone()));
+        let commands = Arc::new(StandardCommandBufferAllocator::new(device.clone(), Default::default()));
+        let descriptors = Arc::new(StandardDescriptorSetAllocator::new(device.clone(), Default::default()));
+
+        let words = vulkano::shader::spirv::bytes_to_words(STEP_SPIRV).map_err(device_error)?;
+        // SAFETY: the SPIR-V comes from glslc, which emits valid modules for Vulkan 1.1.
+        let module = unsafe { ShaderModule::new(device.clone(), ShaderModuleCreateInfo::new(&words)) }
+            .map_err(|e| device_error(format!("loading the SPIR-V: {e}")))?;
+        let constants = scene
+            .effects
+            .shader_constants()
+            .into_iter()
+            .enumerate()
+            .map(|(id, (_, on))| (id as u32, SpecializationConstant::Bool(on)))
+            .chain([(WORKGROUP_SIZE_CONSTANT_ID, SpecializationConstant::U32(WORKGROUP_SIZE))])
+            .collect();
+        let entry = module
+            .specialize(constants)
+            .map_err(|e| device_error(format!("specializing the shader: {e}")))?
+            .entry_point("main")
+            .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
+        let stage = PipelineShaderStageCreateInfo::new(entry);
+        let layout = PipelineLayout::new(
+            device.clone(),
+            PipelineDescriptorSetLayoutCreateInfo::from_stages([&stage])
+                .into_pipeline_layout_create_info(device.clone())
+                .map_err(|e| device_error(format!("pipeline layout: {e:?}")))?,
+        )
+        .map_err(|e| device_error(format!("pipeline layout: {e}")))?;
+        let pipeline =
+            ComputePipeline::new(device.clone(), None, ComputePipelineCreateInfo::stage_layout(stage, layout))
+                .map_err(|e| device_error(format!("compute pipeline: {e}")))?;
+
+        let storage = BufferUsage::STORAGE_BUFFER | BufferUsage::TRANSFER_DST | BufferUsage::TRANSFER_SRC;
+        let device_local = |usage: BufferUsage, bytes: u64| -> Result<Subbuffer<[u8]>, SimError> {
+            Buffer::new_slice::<u8>(
+                memory.clone(),
+                BufferCreateInfo { usage, ..Default::default() },
+                AllocationCreateInfo { memory_type_filter: MemoryTypeFilter::PREFER_DEVICE, ..Default::default() },
+                bytes.max(4),
+            )
+            .map_err(|e| device_error(format!("allocating {bytes} bytes of device memory: {e}")))
+        };
+        let params: Subbuffer<GpuSimParams> =
+            device_local(BufferUsage::UNIFORM_BUFFER | BufferUsage::TRANSFER_DST, size_of::<GpuSimParams>() as u64)?
+                .reinterpret();
+        let spheres: Subbuffer<[GpuSphere]> = device_local(storage, bytes_of_slice(&data.spheres))?.reinterpret();
+        let ranges = device_local(storage, bytes_of_slice(&data.spring_ranges))?;
+        let ends = device_local(storage, bytes_of_slice(&data.spring_ends))?;
+        let state_bytes = bytes_of_slice(&data.positions);
+        let positions: [State; 2] =
+            [device_local(storage, state_bytes)?.reinterpret(), device_local(storage, state_bytes)?.reinterpret()];
+        let velocities: [State; 2] =
+            [device_local(storage, state_bytes)?.reinterpret(), device_local(storage, state_bytes)?.reinterpret()];
+        let max_penetration: Subbuffer<[u32]> = device_local(storage, 4)?.reinterpret();
+
+        let set_layout = pipeline.layout().set_layouts()[0].clone();
+        let set = |from: usize| {
+            let to = 1 - from;
+            DescriptorSet::new(
+                descriptors.clone(),
+                set_layout.clone(),
+                [
+                    WriteDescriptorSet::buffer(0, params.clone()),
+                    WriteDescriptorSet::buffer(1, spheres.clone()),
+                    WriteDescriptorSet::buffer(2, ranges.clone()),
+                    WriteDescriptorSet::buffer(3, ends.clone()),
+                    WriteDescriptorSet::buffer(4, positions[from].clone()),
+                    WriteDescriptorSet::buffer(5, velocities[from].clone()),
+                    WriteDescriptorSet::buffer(6, positions[to].clone()),
+                    WriteDescriptorSet::buffer(7, velocities[to].clone()),
+                    WriteDescriptorSet::buffer(8, max_penetration.clone()),
+                ],
+                [],
+            )
+            .map_err(|e| device_error(format!("descriptor set: {e}")))
+        };
+        let sets = [set(0)?, set(1)?];
+
+        let groups = (data.positions.len() as u32).div_ceil(WORKGROUP_SIZE);
+        let max_x = properties.max_compute_work_group_count[0].max(1);
+        let workgroups = if groups <= max_x { [groups, 1, 1] } else { [max_x, groups.div_ceil(max_x), 1] };
+        let mut sim = Self {
+            free: data.positions.iter().map(|p| p[3]).collect(),
+            scene: scene.clone(),
+            pipeline,
+            sets,
+            params,
+            spheres,
+            positions,
+            velocities,
+            max_penetration,
+            memory,
+            commands,
+            in_flight: None,
+            pending_parameters: None,
+            current: 0,
+            workgroups,
+            time_s: 0.0,
+            substeps_run: 0,
+            last_advance: AdvanceCounts::default(),
+            context,
+        };
+        // Initial upload: one command buffer of copies from host-visible staging buffers.
+        let mut builder = sim.builder()?;
+        sim.copy_in(&mut builder, &[data.params], sim.params.clone().into_bytes())?;
+        sim.copy_in(&mut builder, &data.spheres, sim.spheres.clone().into_bytes())?;
+        sim.copy_in(&mut builder, &data.spring_ranges, ranges.clone())?;
+        sim.copy_in(&mut builder, &data.spring_ends, ends.clone())?;
+        for k in 0..2 {
+            sim.copy_in(&mut builder, &data.positions, sim.positions[k].clone().into_bytes())?;
+            sim.copy_in(&mut builder, &data.velocities, sim.velocities[k].clone().into_bytes())?;
+        }
+        sim.copy_in(&mut builder, &[0u32], sim.max_penetration.clone().into_bytes())?;
+        let cb = builder.build().map_err(|e| device_error(format!("recording the upload: {e}")))?;
+        sim.submit(cb)?;
+        sim.context.check_validation()?;
+        Ok(sim)
+    }
+
+    /// The device this simulation runs on, in words, and whether validation is on.
+    pub fn context(&self) -> &VulkanContext {
+        &self.context
+    }
+
+    fn builder(&self) -> Result<AutoCommandBufferBuilder<PrimaryAutoCommandBuffer>, SimError> {
+        AutoCommandBufferBuilder::primary(
+            self.commands.clone(),
+            self.context.queue.queue_family_index(),
+            CommandBufferUsage::OneTimeSubmit,
+        )
+        .map_err(|e| device_error(format!("command buffer: {e}")))
+    }
+
+    /// Records a copy of `data` into `dst` through a host-visible staging buffer.
+    fn copy_in<T: BufferContents + Copy>(
+        &self,
+        builder: &mut AutoCommandBufferBuilder<PrimaryAutoCommandBuffer>,
+        data: &[T],
+        dst: Subbuffer<[u8]>,
+    ) -> Result<(), SimError> {
+        if data.is_empty() {
+            return Ok(());
+        }
+        let staging = Buffer::from_iter(
+            self.memory.clone(),
+            BufferCreateInfo { usage: BufferUsage::TRANSFER_SRC, ..Default::default() },
+            AllocationCreateInfo {
+                memory_type_filter: MemoryTypeFilter::PREFER_HOST | MemoryTypeFilter::HOST_SEQUENTIAL_WRITE,
+                ..Default::default()
+            },
+            data.iter().copied(),
+        )
+        .map_err(|e| device_error(format!("allocating a staging buffer: {e}")))?;
+        builder
+            .copy_buffer(CopyBufferInfo::buffers(staging, dst))
+            .map_err(|e| device_error(format!("recording a copy: {e}")))?;
+        Ok(())
+    }
+
+    /// Submits after the previous submission (without waiting for it).
+    fn submit(&mut self, cb: Arc<PrimaryAutoCommandBuffer>) -> Result<(), SimError> {
+        let previous: Box<dyn GpuFuture> = match self.in_flight.take() {
+            Some(mut f) => {
+                f.cleanup_finished();
+                f.boxed()
+            }
+            None => vulkano::sync::now(self.context.device.clone()).boxed(),
+        };
+        let future = previous
+            .then_execute(self.context.queue.clone(), cb)
+            .map_err(|e| device_error(format!("submitting: {e}")))?
+            .boxed()
+            .then_signal_fence_and_flush()
+            .map_err(|e| device_error(format!("submitting: {e}")))?;
+        self.in_flight = Some(future);
+        Ok(())
+    }
+
+    /// Waits for every submission so far: the one host wait a read-back needs.
+    fn wait(&mut self) -> Result<(), SimError> {
+        if let Some(f) = self.in_flight.take() {
+            f.wait(None).map_err(|e| device_error(format!("waiting for the device: {e}")))?;
+        }
+        self.context.check_validation()
+    }
+
+    /// Copies buffers into one host-visible buffer, waits once, returns their bytes.
+    fn read_back(&mut self, sources: &[Subbuffer<[u8]>]) -> Result<Vec<Vec<u8>>, SimError> {
+        let total: u64 = sources.iter().map(|b| b.size()).sum();
+        let staging = Buffer::new_slice::<u8>(
+            self.memory.clone(),
+            BufferCreateInfo { usage: BufferUsage::TRANSFER_DST, ..Default::default() },
+            AllocationCreateInfo {
+                memory_type_filter: MemoryTypeFilter::PREFER_HOST | MemoryTypeFilter::HOST_RANDOM_ACCESS,
+                ..Default::default()
+            },
+            total,
+        )
+        .map_err(|e| device_error(format!("allocating the read-back buffer: {e}")))?;
+        let mut builder = self.builder()?;
+        let mut offset = 0;
+        for b in sources {
+            builder
+                .copy_buffer(CopyBufferInfo::buffers(b.clone(), staging.clone().slice(offset..offset + b.size())))
+                .map_err(|e| device_error(format!("recording the read-back: {e}")))?;
+            offset += b.size();
+        }
+        let cb = builder.build().map_err(|e| device_error(format!("recording the read-back: {e}")))?;
+        self.submit(cb)?;
+        self.wait()?;
+        let bytes = staging.read().map_err(|e| device_error(format!("reading the read-back buffer: {e}")))?;
+        let mut out = Vec::with_capacity(sources.len());
+        let mut offset = 0usize;
+        for b in sources {
+            out.push(bytes[offset..offset + b.size() as usize].to_vec());
+            offset += b.size() as usize;
+        }
+        Ok(out)
+    }
+}
+
+fn bytes_of_slice<T>(data: &[T]) -> u64 {
+    std::mem::size_of_val(data) as u64
+}
+
+impl Simulator for VulkanoSimulator {
+    fn new(scene: &Scene) -> Result<Self, SimError> {
+        let adapter = std::env::var("CLOTH_ADAPTER").ok().filter(|s| !s.is_empty());
+        Self::with_adapter(scene, adapter.as_deref())
+    }
+
+    fn backend_name(&self) -> &'static str {
+        BACKEND_NAME
+    }
+
+    fn adapter_name(&self) -> String {
+        let validation = if self.context.validation { ", validation on" } else { "" };
+        format!("{}{validation}", self.context.description)
+    }
+
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    fn advance(&mut self, frames: u32) -> Result<(), SimError> {
+        self.last_advance = AdvanceCounts { frames, submissions: 0, host_waits: 0 };
+        let substeps = self.scene.substeps_per_frame() as u64 * frames as u64;
+        if substeps == 0 {
+            return Ok(());
+        }
+        let mut builder = self.builder()?;
+        if let Some((params, spheres)) = self.pending_parameters.take() {
+            builder
+                .update_buffer(self.params.clone(), Box::new(params))
+                .map_err(|e| device_error(format!("parameters: {e}")))?;
+            if !spheres.is_empty() {
+                let dst = self.spheres.clone().slice(0..spheres.len() as u64);
+                builder
+                    .update_buffer(dst, spheres.into_boxed_slice())
+                    .map_err(|e| device_error(format!("spheres: {e}")))?;
+            }
+        }
+        builder.bind_pipeline_compute(self.pipeline.clone()).map_err(|e| device_error(format!("binding: {e}")))?;
+        for _ in 0..substeps {
+            builder
+                .bind_descriptor_sets(
+                    PipelineBindPoint::Compute,
+                    self.pipeline.layout().clone(),
+                    0,
+                    self.sets[self.current].clone(),
+                )
+                .map_err(|e| device_error(format!("binding: {e}")))?;
+            // SAFETY: the shader bounds-checks its invocation index against params.vertex_count,
+            // and every buffer it indexes holds vertex_count (or its spring-range) elements.
+            unsafe { builder.dispatch(self.workgroups) }.map_err(|e| device_error(format!("dispatch: {e}")))?;
+            self.current = 1 - self.current;
+        }
+        let cb = builder.build().map_err(|e| device_error(format!("recording the frame: {e}")))?;
+        self.submit(cb)?;
+        self.last_advance.submissions = 1;
+        let dt = self.scene.substep_dt();
+        for _ in 0..substeps {
+            self.time_s += dt;
+        }
+        self.substeps_run += substeps;
+        self.context.check_validation()
+    }
+
+    fn update_parameters(&mut self, scene: &Scene) -> Result<(), SimError> {
+        if let Some(what) = self.scene.rebuild_reason(scene) {
+            return Err(SimError::RebuildRequired { what });
+        }
+        scene.validate()?;
+        let spheres = if scene.effects.contains(cloth_core::Effect::SphereContact) {
+            scene.spheres.iter().map(GpuSphere::from_spec).collect()
+        } else {
+            Vec::new()
+        };
+        self.pending_parameters = Some((GpuSimParams::from_scene(scene), spheres));
+        self.scene = scene.clone();
+        Ok(())
+    }
+
+    fn read_state(&mut self) -> Result<ClothState, SimError> {
+        let sources =
+            [self.positions[self.current].clone().into_bytes(), self.velocities[self.current].clone().into_bytes()];
+        let bytes = self.read_back(&sources)?;
+        let xyz = |b: &[u8]| bytemuck::cast_slice::<u8, [f32; 4]>(b).iter().map(|q| [q[0], q[1], q[2]]).collect();
+        Ok(ClothState { time_s: self.time_s, positions: xyz(&bytes[0]), velocities: xyz(&bytes[1]) })
+    }
+
+    fn write_state(&mut self, state: &ClothState) -> Result<(), SimError> {
+        cloth_core::simulator::check_state_size(self.free.len(), state)?;
+        let positions: Vec<[f32; 4]> =
+            state.positions.iter().zip(&self.free).map(|(p, &w)| [p[0], p[1], p[2], w]).collect();
+        let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
+        let mut builder = self.builder()?;
+        self.copy_in(&mut builder, &positions, self.positions[self.current].clone().into_bytes())?;
+        self.copy_in(&mut builder, &velocities, self.velocities[self.current].clone().into_bytes())?;
+        let cb = builder.build().map_err(|e| device_error(format!("recording the upload: {e}")))?;
+        self.submit(cb)?;
+        self.time_s = state.time_s;
+        Ok(())
+    }
+
+    fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
+        let bytes = self.read_back(&[self.max_penetration.clone().into_bytes()])?;
+        let bits = u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]);
+        Ok(Diagnostics { max_penetration_m: f32::from_bits(bits) as f64, substeps_run: self.substeps_run })
+    }
+
+    fn last_advance_counts(&self) -> AdvanceCounts {
+        self.last_advance
+    }
+}

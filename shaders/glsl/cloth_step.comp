@@ -1,0 +1,95 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+
+// One substep of the mass-spring cloth: one invocation per vertex.
+//
+// Effects the scene leaves out are compiled out: each EFFECT_* is a specialization constant
+// (ids in cloth_core::Effect::ALL order) set from cloth_core::EffectSet::shader_constants, and
+// the driver removes the code behind a false constant. The workgroup size is one too (id 8).
+
+layout(constant_id = 0) const bool EFFECT_GRAVITY = true;
+layout(constant_id = 1) const bool EFFECT_STRUCTURAL = true;
+layout(constant_id = 2) const bool EFFECT_SHEAR = true;
+layout(constant_id = 3) const bool EFFECT_BEND = true;
+layout(constant_id = 4) const bool EFFECT_SPRING_DAMPING = true;
+layout(constant_id = 5) const bool EFFECT_CONTACT = true;
+layout(constant_id = 6) const bool EFFECT_FRICTION = true;
+layout(constant_id = 7) const bool EFFECT_AIR_DRAG = false;
+// local_size_x is the default; local_size_x_id makes it specializable (id 8).
+layout(local_size_x = 64, local_size_x_id = 8) in;
+
+#include "layout.glsl"
+#include "forces.glsl"
+
+bool kind_enabled(uint kind) {
+    if (kind == 0u) return EFFECT_STRUCTURAL;
+    if (kind == 1u) return EFFECT_SHEAR;
+    return EFFECT_BEND;
+}
+
+void main() {
+    // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
+    uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    if (i >= params.vertex_count) {
+        return;
+    }
+    vec4 p = positions_in[i];
+    vec3 x = p.xyz;
+    vec3 v = velocities_in[i].xyz;
+    vec3 x_new = x;
+    vec3 v_new = vec3(0.0);
+    if (p.w != 0.0) {
+        float mass = params.vertex_mass;
+        float dt = params.substep_dt;
+        vec3 force = vec3(0.0);
+        if (EFFECT_GRAVITY) {
+            force += gravity_force(mass, params.gravity.xyz);
+        }
+        if (EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND) {
+            SpringRange range = spring_ranges[i];
+            for (uint e = range.first; e < range.first + range.count; e++) {
+                SpringEnd end_ = spring_ends[e];
+                if (!kind_enabled(end_.kind)) {
+                    continue;
+                }
+                float damping = 0.0;
+                if (EFFECT_SPRING_DAMPING) {
+                    damping = params.damping[end_.kind];
+                }
+                force += spring_force(x, positions_in[end_.other].xyz, v, velocities_in[end_.other].xyz,
+                                      end_.rest_length, params.stiffness[end_.kind], damping);
+            }
+        }
+        if (EFFECT_AIR_DRAG) {
+            force += air_drag_force(mass, params.air_drag, v);
+        }
+        vec3 other_forces = force;
+        if (EFFECT_CONTACT) {
+            for (uint s = 0u; s < params.sphere_count; s++) {
+                vec3 normal;
+                vec3 contact;
+                if (contact_force(x, v, spheres[s], normal, contact)) {
+                    force += contact;
+                    if (EFFECT_FRICTION) {
+                        force += friction_force(other_forces, v, normal, mass, dt, spheres[s].friction);
+                    }
+                }
+            }
+        }
+        // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
+        v_new = v + force * (dt / mass);
+        x_new = x + v_new * dt;
+    }
+    positions_out[i] = vec4(x_new, p.w);
+    velocities_out[i] = vec4(v_new, 0.0);
+    if (EFFECT_CONTACT) {
+        float deepest = 0.0;
+        for (uint s = 0u; s < params.sphere_count; s++) {
+            vec3 offset = x_new - spheres[s].center;
+            deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+        }
+        if (deepest > 0.0) {
+            atomicMax(max_penetration_bits, floatBitsToUint(deepest));
+        }
+    }
+}

@@ -1,0 +1,56 @@
+// The force model of the brief, one function per force: the GLSL twin of
+// crates/cloth-core/src/forces.rs and shaders/wgsl/cloth_step.wgsl (same names, same order of
+// operations). Units: m, kg, s, N/m, N·s/m.
+
+// Brief: F_g = m g.
+vec3 gravity_force(float mass, vec3 gravity) {
+    return gravity * mass;
+}
+
+// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i.
+vec3 spring_force(vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, float rest_length, float stiffness, float damping) {
+    vec3 delta = x_j - x_i;
+    float len = sqrt(dot(delta, delta));
+    if (len <= 0.0) {
+        return vec3(0.0);
+    }
+    vec3 u = delta * (1.0 / len);
+    float extension_rate = dot(v_j - v_i, u);
+    return u * (stiffness * (len - rest_length) + damping * extension_rate);
+}
+
+// Linear air drag F = -m γ v (not in the brief).
+vec3 air_drag_force(float mass, float rate, vec3 v) {
+    return v * (-(mass * rate));
+}
+
+// Brief: F_c = k_c d, plus damping of the normal approach velocity. Returns false outside.
+bool contact_force(vec3 x, vec3 v, Sphere s, out vec3 normal, out vec3 force) {
+    vec3 offset = x - s.center;
+    float distance = sqrt(dot(offset, offset));
+    float depth = s.radius - distance;
+    normal = vec3(0.0);
+    force = vec3(0.0);
+    if (depth <= 0.0) {
+        return false;
+    }
+    normal = distance > 0.0 ? offset * (1.0 / distance) : vec3(0.0, 1.0, 0.0);
+    float approach = min(dot(v, normal), 0.0);
+    force = normal * (s.stiffness * depth - s.damping * approach);
+    return true;
+}
+
+// Brief: R_on = (R_o·1_n)1_n, R_ot = R_o - R_on, F_f = -min(|R_ot|, c_f |R_on|) 1_t,
+// with m v_t / Δt added to R_ot (see docs/model.md).
+vec3 friction_force(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt, float coefficient) {
+    vec3 r_on = normal * dot(other_forces, normal);
+    vec3 r_ot = other_forces - r_on;
+    vec3 v_t = v - normal * dot(v, normal);
+    vec3 tangential = r_ot + v_t * (mass / dt);
+    float magnitude = sqrt(dot(tangential, tangential));
+    if (magnitude <= 0.0) {
+        return vec3(0.0);
+    }
+    float limit = coefficient * sqrt(dot(r_on, r_on));
+    return tangential * (-(min(magnitude, limit) / magnitude));
+}
