@@ -85,19 +85,26 @@ fn backends_lists_the_cpu_reference() {
     let out = cloth(&["backends"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("cpu ") && text.contains("cpu-f64"), "{text}");
+    assert!(text.contains("wgpu ") && text.contains("vulkano "), "{text}");
 }
 
 #[test]
-fn run_on_wgpu_drapes_without_nan_or_deep_penetration() {
-    let out = cloth(&["run", "--backend", "wgpu", "scenes/drape.ron", "--json"]);
+fn run_on_the_gpu_backends_drapes_without_nan_or_deep_penetration() {
+    for backend in ["wgpu", "vulkano"] {
+        run_on_gpu(backend);
+    }
+}
+
+fn run_on_gpu(backend: &str) {
+    let out = cloth(&["run", "--backend", backend, "scenes/drape.ron", "--json"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     if !out.status.success() && stderr.contains("unavailable") && std::env::var_os("CI").is_none() {
-        eprintln!("SKIPPED: no wgpu adapter here: {stderr}");
+        eprintln!("SKIPPED: no {backend} adapter here: {stderr}");
         return;
     }
     assert!(out.status.success(), "{stderr}");
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(v["backend"], "wgpu");
+    assert_eq!(v["backend"], backend);
     assert_eq!(v["nan_count"], 0);
     assert!(v["max_penetration_fraction_of_radius"].as_f64().unwrap() < 0.02, "{v}");
     assert_eq!(v["submissions_per_frame"], 1.0);
