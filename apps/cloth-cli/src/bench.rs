@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use cloth_core::{Scene, SimError, Substeps};
 
-use crate::backends;
+use cloth_backends as backends;
 
 /// Options of `cloth bench`.
 #[derive(clap::Args)]

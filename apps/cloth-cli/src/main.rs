@@ -5,7 +5,6 @@
 //! * `cloth backends`: the backends compiled in and the adapters each can use;
 //! * `cloth bench`: ms per frame and vertex-substeps per second of each backend.
 
-mod backends;
 mod bench;
 mod render;
 mod report;
@@ -15,6 +14,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use cloth_backends as backends;
 use cloth_core::layout::MemoryEstimate;
 use cloth_core::{ClothModel, Energy, Scene, Substeps, stability};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -164,7 +164,7 @@ fn mib(bytes: u64) -> f64 {
 
 fn run(args: RunArgs) -> Result<()> {
     let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
-    let backend = backends::find(&args.backend)?;
+    let backend = backends::find(&args.backend).map_err(anyhow::Error::msg)?;
     let frames = args.frames.unwrap_or(scene.time.frames);
     let mut sim = (backend.create)(&scene, args.adapter.as_deref())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;

@@ -202,6 +202,12 @@ impl WgpuSimulator {
         &self.positions[self.current]
     }
 
+    /// The buffer holding the current velocities (`vec4<f32>` per vertex, xyz in m/s), valid until
+    /// the next `advance`.
+    pub fn velocity_buffer(&self) -> &wgpu::Buffer {
+        &self.velocities[self.current]
+    }
+
     /// The device and queue the simulation runs on.
     pub fn context(&self) -> &GpuContext {
         &self.context

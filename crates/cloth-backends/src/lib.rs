@@ -1,4 +1,9 @@
-//! The backends compiled into this binary, by name.
+//! # cloth-backends
+//!
+//! The backends compiled into the workbench, by name: what `cloth backends` lists, what
+//! `--backend NAME` picks, and what the inspector offers.
+
+#![warn(missing_docs)]
 
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
 
@@ -69,10 +74,13 @@ pub fn all() -> Vec<Backend> {
 }
 
 /// Looks a backend up by name.
-pub fn find(name: &str) -> anyhow::Result<Backend> {
+///
+/// # Errors
+/// A message listing the backends of this build when there is none of that name.
+pub fn find(name: &str) -> Result<Backend, String> {
     let all = all();
     let names: Vec<&str> = all.iter().map(|b| b.name).collect();
     all.into_iter()
         .find(|b| b.name == name)
-        .ok_or_else(|| anyhow::anyhow!("unknown backend '{name}': this build has {}", names.join(", ")))
+        .ok_or_else(|| format!("unknown backend '{name}': this build has {}", names.join(", ")))
 }

@@ -1,0 +1,613 @@
+//! The inspector application: persisted state, runtime resources, and the frame loop.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use cloth_core::{ClothModel, ClothState, CpuSimulator, Energy, Problem, Scene, SimError, Simulator};
+use cloth_wgpu::{GpuContext, WgpuSimulator};
+use eframe::egui;
+
+use crate::commands::Command;
+use crate::panels::{self, PanelContext, backend::BackendStatus, scene::FileBrowser};
+use crate::render::{ColorMode, Source, ViewInputs, ViewRenderer};
+use crate::state::PersistedState;
+use crate::stats::{Sample, Stats};
+
+/// Frames between two read-backs for the plots when the cloth is drawn from the GPU buffer.
+const SAMPLE_EVERY_GPU_FRAMES: u32 = 6;
+
+/// The running simulator: the wgpu backend shares eframe's device (drawn without read-back),
+/// the others are boxed behind the trait.
+pub enum Sim {
+    /// WGSL backend on eframe's own device.
+    Shared(Box<WgpuSimulator>),
+    /// Any other backend.
+    Boxed(Box<dyn Simulator>),
+}
+
+impl Sim {
+    /// The simulator behind the trait.
+    pub fn get(&mut self) -> &mut dyn Simulator {
+        match self {
+            Sim::Shared(s) => s.as_mut(),
+            Sim::Boxed(s) => s.as_mut(),
+        }
+    }
+
+    fn scene(&self) -> &Scene {
+        match self {
+            Sim::Shared(s) => s.scene(),
+            Sim::Boxed(s) => s.scene(),
+        }
+    }
+}
+
+/// Options from the command line.
+#[derive(Clone, Debug, Default)]
+pub struct LaunchOptions {
+    /// Scene file to open (instead of the remembered one).
+    pub scene: Option<PathBuf>,
+    /// Backend to start on.
+    pub backend: Option<String>,
+    /// Headless run: simulate this many frames, write a screenshot, quit.
+    pub screenshot: Option<(u32, PathBuf)>,
+}
+
+/// Runtime resources: never persisted.
+pub struct Runtime {
+    sim: Option<Sim>,
+    model: ClothModel,
+    /// Last state read back: drawn for host backends, and the last good state to fall back to.
+    host_state: Option<ClothState>,
+    backends: Vec<BackendStatus>,
+    renderer: Option<ViewRenderer>,
+    render_state: Option<eframe::egui_wgpu::RenderState>,
+    stats: Stats,
+    problems: Vec<Problem>,
+    notices: Vec<String>,
+    commands: Vec<Command>,
+    browser: FileBrowser,
+    frame_accumulator: f32,
+    frames_since_sample: u32,
+    frames_run: u32,
+    screenshot: Option<(u32, PathBuf)>,
+    screenshot_done: Arc<Mutex<Option<Result<(), String>>>>,
+    screenshot_requested: bool,
+    confirm_quit: bool,
+    allow_close: bool,
+}
+
+/// The inspector.
+pub struct InspectorApp {
+    state: PersistedState,
+    runtime: Runtime,
+}
+
+fn availability(render_state: Option<&eframe::egui_wgpu::RenderState>) -> Vec<BackendStatus> {
+    cloth_backends::all()
+        .into_iter()
+        .map(|b| {
+            let availability = match (b.name, render_state) {
+                ("wgpu", Some(rs)) => {
+                    Ok(format!("{} (eframe's device, drawn without read-back)", rs.adapter.get_info().name))
+                }
+                _ => (b.adapters)().and_then(|list| list.into_iter().next().ok_or_else(|| "no adapter".to_string())),
+            };
+            BackendStatus { name: b.name, description: b.description, availability }
+        })
+        .collect()
+}
+
+impl InspectorApp {
+    /// Builds the app; restores the persisted state unless the command line says otherwise.
+    pub fn new(cc: &eframe::CreationContext<'_>, options: LaunchOptions) -> Self {
+        let headless = options.screenshot.is_some();
+        let mut state: PersistedState = if headless {
+            PersistedState::default()
+        } else {
+            cc.storage.and_then(|s| eframe::get_value(s, eframe::APP_KEY)).unwrap_or_default()
+        };
+        let mut notices = Vec::new();
+        if let Some(path) = &options.scene {
+            match Scene::load(path) {
+                Ok(scene) => {
+                    state.scene = scene.clone();
+                    state.saved_scene = scene;
+                    state.scene_path = Some(path.clone());
+                }
+                Err(e) => notices.push(format!("{}: {e}", path.display())),
+            }
+        }
+        if let Some(b) = &options.backend {
+            state.backend = b.clone();
+        }
+        if headless {
+            state.playing = true;
+            state.speed = 1.0;
+        }
+        if state.scene.validate().is_err() {
+            notices.push("the remembered scene is invalid; starting from the default scene".into());
+            state.scene = Scene::default();
+        }
+        let render_state = cc.wgpu_render_state.clone();
+        let renderer = render_state.as_ref().map(ViewRenderer::new);
+        let backends = availability(render_state.as_ref());
+        let mut app = Self {
+            runtime: Runtime {
+                sim: None,
+                model: ClothModel::new(&state.scene),
+                host_state: None,
+                backends,
+                renderer,
+                render_state,
+                stats: Stats::default(),
+                problems: Vec::new(),
+                notices,
+                commands: Vec::new(),
+                browser: FileBrowser::default(),
+                frame_accumulator: 0.0,
+                frames_since_sample: 0,
+                frames_run: 0,
+                screenshot: options.screenshot,
+                screenshot_done: Arc::new(Mutex::new(None)),
+                screenshot_requested: false,
+                confirm_quit: false,
+                allow_close: false,
+            },
+            state,
+        };
+        app.rebuild(None);
+        app
+    }
+
+    /// Creates a simulator of backend `name` for the current scene.
+    fn create(&self, name: &str) -> Result<Sim, SimError> {
+        let scene = &self.state.scene;
+        if name == "wgpu"
+            && let Some(rs) = &self.runtime.render_state
+        {
+            let context = GpuContext {
+                device: rs.device.clone(),
+                queue: rs.queue.clone(),
+                adapter_description: format!("{} (eframe's device)", rs.adapter.get_info().name),
+            };
+            return Ok(Sim::Shared(Box::new(WgpuSimulator::on_device(scene, context)?)));
+        }
+        let backend =
+            cloth_backends::find(name).map_err(|reason| SimError::Unavailable { backend: "inspector", reason })?;
+        Ok(Sim::Boxed((backend.create)(scene, None)?))
+    }
+
+    /// (Re)creates the simulator of the current backend, optionally continuing from `state`.
+    /// Falls back to the CPU when the backend cannot start.
+    fn rebuild(&mut self, state: Option<ClothState>) {
+        let name = self.state.backend.clone();
+        let sim = match self.create(&name) {
+            Ok(sim) => Ok(sim),
+            Err(e) => {
+                self.runtime.notices.push(format!("{name} cannot run this scene: {e}; using the CPU backend"));
+                self.state.backend = "cpu".into();
+                self.create("cpu")
+            }
+        };
+        match sim {
+            Ok(mut sim) => {
+                if let Some(s) = &state
+                    && let Err(e) = sim.get().write_state(s)
+                {
+                    self.runtime.notices.push(format!("could not hand the state over: {e}"));
+                }
+                self.runtime.model = ClothModel::new(sim.scene());
+                self.runtime.host_state = sim.get().read_state().ok();
+                self.runtime.sim = Some(sim);
+            }
+            Err(e) => self.runtime.notices.push(format!("cannot start any backend: {e}")),
+        }
+        if state.is_none() {
+            self.runtime.stats.clear();
+        }
+    }
+
+    /// Hands the running cloth to another backend: read its state, start the new backend, write
+    /// the state into it. The motion continues without a jump.
+    pub fn switch_backend(&mut self, name: &str) {
+        let state =
+            self.runtime.sim.as_mut().and_then(|s| s.get().read_state().ok()).or(self.runtime.host_state.clone());
+        match self.create(name) {
+            Ok(mut sim) => {
+                if let Some(s) = &state
+                    && let Err(e) = hand_over(s, sim.get())
+                {
+                    self.runtime.notices.push(format!("could not hand the state to {name}: {e}"));
+                    return;
+                }
+                self.state.backend = name.to_string();
+                self.runtime.host_state = state;
+                self.runtime.sim = Some(sim);
+            }
+            Err(e) => self.runtime.notices.push(format!("cannot switch to {name}: {e}")),
+        }
+    }
+
+    fn apply(&mut self, command: Command) {
+        match command {
+            Command::Reset => self.rebuild(None),
+            Command::SwitchBackend(name) => self.switch_backend(&name),
+            Command::StepOnce => self.advance(1),
+            Command::OpenScene(path) => match Scene::load(&path) {
+                Ok(scene) => {
+                    self.state.scene = scene.clone();
+                    self.state.saved_scene = scene;
+                    self.state.scene_path = Some(path);
+                    self.rebuild(None);
+                }
+                Err(e) => self.runtime.notices.push(format!("{} was not opened: {e}", path.display())),
+            },
+            Command::SaveScene(path) => match save_atomically(&self.state.scene, &path) {
+                Ok(()) => {
+                    self.state.saved_scene = self.state.scene.clone();
+                    self.state.scene_path = Some(path);
+                }
+                Err(e) => self.runtime.notices.push(format!("cannot save {}: {e}", path.display())),
+            },
+        }
+    }
+
+    /// Applies the edited scene: invalid edits are shown, not applied; structural ones rebuild.
+    fn apply_edits(&mut self) {
+        let Some(sim) = self.runtime.sim.as_mut() else { return };
+        if self.state.scene == *sim.scene() {
+            self.runtime.problems.clear();
+            return;
+        }
+        match self.state.scene.validate() {
+            Err(e) => self.runtime.problems = e.problems().to_vec(),
+            Ok(_) => {
+                self.runtime.problems.clear();
+                if sim.scene().rebuild_reason(&self.state.scene).is_some() {
+                    self.rebuild(None);
+                } else if let Err(e) = sim.get().update_parameters(&self.state.scene) {
+                    self.runtime.notices.push(format!("could not apply the change: {e}"));
+                }
+            }
+        }
+    }
+
+    /// Advances `frames` frames; a backend that fails falls back to the CPU with the last good
+    /// state. Every `SAMPLE_EVERY_GPU_FRAMES` frames (every frame for host backends) the state is
+    /// read back for the plots, and that frame is timed from an idle device to the end of its
+    /// read-back.
+    fn advance(&mut self, frames: u32) {
+        let Some(sim) = self.runtime.sim.as_mut() else { return };
+        if frames == 0 {
+            return;
+        }
+        let host_backend = matches!(sim, Sim::Boxed(_));
+        self.runtime.frames_since_sample += frames;
+        let sample_now = host_backend || self.runtime.frames_since_sample >= SAMPLE_EVERY_GPU_FRAMES;
+        let result = (|| {
+            if !sample_now {
+                return sim.get().advance(frames).map(|()| None);
+            }
+            if !host_backend {
+                sim.get().diagnostics()?; // wait for earlier frames, so the timing is this frame's
+            }
+            let start = Instant::now();
+            sim.get().advance(frames)?;
+            let state = sim.get().read_state()?;
+            let diagnostics = sim.get().diagnostics()?;
+            Ok(Some((state, diagnostics, start.elapsed().as_secs_f64())))
+        })();
+        match result {
+            Ok(Some((state, diagnostics, seconds))) => {
+                let scene = sim.scene();
+                let work = scene.vertex_count() as f64 * scene.substeps_per_frame() as f64;
+                self.runtime.stats.record_timing(seconds, frames, work);
+                let energy = Energy::of(&self.runtime.model, &state);
+                self.runtime.stats.push(Sample {
+                    time_s: state.time_s,
+                    kinetic_j: energy.kinetic,
+                    elastic_j: energy.elastic.iter().sum(),
+                    max_penetration_m: diagnostics.max_penetration_m,
+                });
+                if state.non_finite_count() > 0 {
+                    self.state.playing = false;
+                    self.runtime.notices.push(
+                        "the simulation blew up (NaN): paused. Raise the substeps or lower the stiffness, then Reset."
+                            .into(),
+                    );
+                }
+                self.runtime.host_state = Some(state);
+                self.runtime.frames_since_sample = 0;
+            }
+            Ok(None) => {}
+            Err(e) => {
+                let failed = sim.get().backend_name();
+                self.runtime
+                    .notices
+                    .push(format!("{failed} failed ({e}); continuing on the CPU from the last good state"));
+                let last = self.runtime.host_state.clone();
+                match CpuSimulator::new(&self.state.scene) {
+                    Ok(mut cpu) => {
+                        if let Some(s) = &last {
+                            let _ = cpu.write_state(s);
+                        }
+                        self.runtime.sim = Some(Sim::Boxed(Box::new(cpu)));
+                        self.state.backend = "cpu".into();
+                    }
+                    Err(e) => self.runtime.notices.push(format!("the CPU backend cannot run either: {e}")),
+                }
+            }
+        }
+        self.runtime.frames_run += frames;
+    }
+
+    fn view(&mut self, ui: &mut egui::Ui) {
+        let rect = ui.available_rect_before_wrap();
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        let camera = &mut self.state.camera;
+        let shift = ui.input(|i| i.modifiers.shift);
+        if response.dragged_by(egui::PointerButton::Primary) {
+            let d = response.drag_delta();
+            if shift && !self.state.scene.spheres.is_empty() {
+                let (right, up) = camera.right_up();
+                let scale = camera.distance as f64 * 0.0015;
+                let c = &mut self.state.scene.spheres[0].center;
+                for k in 0..3 {
+                    c[k] += (right[k] as f64 * d.x as f64 - up[k] as f64 * d.y as f64) * scale;
+                }
+            } else {
+                camera.orbit(d.x, d.y);
+            }
+        }
+        if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) {
+            let d = response.drag_delta();
+            camera.pan(d.x, d.y);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                camera.zoom(scroll);
+            }
+        }
+        let (Some(renderer), Some(rs)) = (self.runtime.renderer.as_mut(), self.runtime.render_state.as_ref()) else {
+            ui.put(rect, egui::Label::new("The 3D view needs eframe's wgpu renderer."));
+            return;
+        };
+        let ppp = ui.ctx().pixels_per_point();
+        let size = [(rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32];
+        let aspect = rect.width() / rect.height().max(1.0);
+        let inputs_source = match self.runtime.sim.as_ref() {
+            Some(Sim::Shared(s)) => {
+                Some(Source::Device { positions: s.position_buffer(), velocities: s.velocity_buffer() })
+            }
+            _ => self.runtime.host_state.as_ref().map(Source::Host),
+        };
+        let Some(source) = inputs_source else { return };
+        let inputs = ViewInputs {
+            view_proj: self.state.camera.view_proj(aspect),
+            eye: self.state.camera.eye(),
+            color_mode: self.state.color_mode,
+            wireframe: self.state.wireframe,
+            source,
+        };
+        let texture = renderer.render(rs, size, &self.runtime.model, &inputs);
+        ui.painter().image(
+            texture,
+            rect,
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            egui::Color32::WHITE,
+        );
+        ui.painter().text(
+            rect.left_bottom() + egui::vec2(8.0, -8.0),
+            egui::Align2::LEFT_BOTTOM,
+            "drag: orbit · right-drag: pan · scroll: zoom · shift-drag: move sphere 0",
+            egui::FontId::proportional(12.0),
+            egui::Color32::from_gray(60),
+        );
+    }
+
+    fn handle_close(&mut self, ctx: &egui::Context) {
+        if self.runtime.screenshot.is_some() {
+            return;
+        }
+        if ctx.input(|i| i.viewport().close_requested()) && self.state.has_unsaved_edits() && !self.runtime.allow_close
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.runtime.confirm_quit = true;
+        }
+        if self.runtime.confirm_quit {
+            egui::Modal::new(egui::Id::unique("confirm quit")).show(ctx, |ui| {
+                ui.heading("Quit with unsaved edits?");
+                ui.label("The scene has changed since it was last opened or saved.");
+                ui.horizontal(|ui| {
+                    if let Some(path) = self.state.scene_path.clone()
+                        && ui.button(format!("Save to {} and quit", path.display())).clicked()
+                    {
+                        self.apply(Command::SaveScene(path));
+                        self.runtime.allow_close = true;
+                        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                    }
+                    if ui.button("Quit without saving").clicked() {
+                        self.runtime.allow_close = true;
+                        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                    }
+                    if ui.button("Cancel").clicked() {
+                        self.runtime.confirm_quit = false;
+                    }
+                });
+            });
+        }
+    }
+
+    fn headless_step(&mut self, ctx: &egui::Context) {
+        let Some((frames, path)) = self.runtime.screenshot.clone() else { return };
+        if let Some(result) = self.runtime.screenshot_done.lock().ok().and_then(|mut r| r.take()) {
+            match result {
+                Ok(()) => eprintln!("wrote {}", path.display()),
+                Err(e) => eprintln!("screenshot failed: {e}"),
+            }
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
+        if self.runtime.frames_run >= frames && !self.runtime.screenshot_requested {
+            self.runtime.screenshot_requested = true;
+            let done = self.runtime.screenshot_done.clone();
+            ctx.request_screenshot(move |image| {
+                let result = write_png(&image, &path);
+                if let Ok(mut d) = done.lock() {
+                    *d = Some(result);
+                }
+            });
+        }
+        ctx.request_repaint();
+    }
+}
+
+/// Writes `state` into `to` (positions, velocities and time: exactly, bit for bit).
+pub fn hand_over(state: &ClothState, to: &mut dyn Simulator) -> Result<(), SimError> {
+    to.write_state(state)
+}
+
+fn write_png(image: &egui::ColorImage, path: &Path) -> Result<(), String> {
+    let [w, h] = image.size;
+    let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), w as u32, h as u32);
+    encoder.set_color(png::ColorType::Rgba);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    let bytes: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+    writer.write_image_data(&bytes).map_err(|e| e.to_string())
+}
+
+/// Writes a scene next to its destination and renames it into place, so a crash never leaves a
+/// half-written file.
+pub fn save_atomically(scene: &Scene, path: &Path) -> std::io::Result<()> {
+    let tmp = path.with_extension("ron.tmp");
+    std::fs::write(&tmp, scene.to_ron_string())?;
+    std::fs::rename(&tmp, path)
+}
+
+impl eframe::App for InspectorApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let ctx = ui.ctx().clone();
+        // Simulate.
+        if self.state.playing {
+            self.runtime.frame_accumulator += self.state.speed;
+            let n = self.runtime.frame_accumulator.floor() as u32;
+            self.runtime.frame_accumulator -= n as f32;
+            self.advance(n);
+            ctx.request_repaint();
+        }
+        let current = self.state.backend.clone();
+        let adapter = self.runtime.sim.as_mut().map(|s| s.get().adapter_name()).unwrap_or_default();
+        egui::Panel::left("controls").resizable(true).default_size(340.0).show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                let mut ctx_panel = PanelContext {
+                    scene: &mut self.state.scene,
+                    problems: &self.runtime.problems,
+                    commands: &mut self.runtime.commands,
+                };
+                egui::CollapsingHeader::new("Scene").default_open(true).show(ui, |ui| {
+                    panels::scene::show(ui, &mut ctx_panel, self.state.scene_path.as_deref(), &mut self.runtime.browser)
+                });
+                egui::CollapsingHeader::new("Backend").default_open(true).show(ui, |ui| {
+                    panels::backend::show(ui, &self.runtime.backends, &current, &adapter, ctx_panel.commands)
+                });
+                egui::CollapsingHeader::new("Time").default_open(true).show(ui, |ui| {
+                    panels::time::show(ui, &mut ctx_panel, &mut self.state.playing, &mut self.state.speed)
+                });
+                egui::CollapsingHeader::new("Cloth").show(ui, |ui| panels::cloth::show(ui, &mut ctx_panel));
+                egui::CollapsingHeader::new("Springs").show(ui, |ui| panels::springs::show(ui, &mut ctx_panel));
+                egui::CollapsingHeader::new("Contact").show(ui, |ui| panels::contact::show(ui, &mut ctx_panel));
+                egui::CollapsingHeader::new("Effects").show(ui, |ui| panels::effects::show(ui, &mut ctx_panel));
+                egui::CollapsingHeader::new("View").default_open(true).show(ui, |ui| {
+                    ui.horizontal_wrapped(|ui| {
+                        for (mode, label) in [
+                            (ColorMode::Plain, "plain"),
+                            (ColorMode::Strain, "strain"),
+                            (ColorMode::Contact, "contact"),
+                            (ColorMode::Speed, "speed"),
+                        ] {
+                            ui.selectable_value(&mut self.state.color_mode, mode, label);
+                        }
+                    });
+                    ui.checkbox(&mut self.state.wireframe, "wireframe");
+                });
+            });
+        });
+        egui::Panel::right("stats").resizable(true).default_size(300.0).show(ui, |ui| {
+            ui.heading("Stats");
+            if let Some(sim) = self.runtime.sim.as_ref() {
+                panels::stats::show(ui, &self.runtime.stats, sim.scene());
+            }
+        });
+        if !self.runtime.notices.is_empty() {
+            egui::Panel::bottom("notices").show(ui, |ui| {
+                let mut clear = false;
+                for n in self.runtime.notices.iter().rev().take(4) {
+                    ui.colored_label(egui::Color32::from_rgb(200, 80, 20), n);
+                }
+                if ui.small_button("dismiss").clicked() {
+                    clear = true;
+                }
+                if clear {
+                    self.runtime.notices.clear();
+                }
+            });
+        }
+        egui::CentralPanel::default().show(ui, |ui| self.view(ui));
+        panels::scene::browser_window(&ctx, &mut self.runtime.browser, &mut self.runtime.commands);
+        self.handle_close(&ctx);
+        // Apply what the panels asked for, after the frame.
+        self.apply_edits();
+        for command in std::mem::take(&mut self.runtime.commands) {
+            self.apply(command);
+        }
+        self.headless_step(&ctx);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        if self.runtime.screenshot.is_none() {
+            eframe::set_value(storage, eframe::APP_KEY, &self.state);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The handover used when switching backends preserves the state exactly, across every
+    /// backend that can start here, and the motion continues from it.
+    #[test]
+    fn handover_between_backends_preserves_the_state_exactly() {
+        let mut scene = Scene::default();
+        scene.cloth.resolution = [12, 9];
+        let mut from: Box<dyn Simulator> = Box::new(CpuSimulator::new(&scene).unwrap());
+        from.advance(20).unwrap();
+        for name in ["wgpu", "vulkano", "cpu", "cpu-f64", "cpu"] {
+            let state = from.read_state().unwrap();
+            let backend = cloth_backends::find(name).unwrap();
+            let mut to = match (backend.create)(&scene, None) {
+                Ok(sim) => sim,
+                Err(SimError::Unavailable { reason, .. }) if std::env::var_os("CI").is_none() => {
+                    eprintln!("SKIPPED handover to {name}: {reason}");
+                    continue;
+                }
+                Err(e) => panic!("{name}: {e}"),
+            };
+            hand_over(&state, to.as_mut()).unwrap();
+            let back = to.read_state().unwrap();
+            assert_eq!(back, state, "handover to {name} changed the state");
+            to.advance(2).unwrap();
+            let after = to.read_state().unwrap();
+            assert!(
+                after.time_s > state.time_s && after.centroid()[1] < state.centroid()[1],
+                "{name} continues the fall"
+            );
+            from = to;
+        }
+    }
+}

@@ -1,0 +1,18 @@
+//! Actions that change the world, queued while the UI is drawn and applied after the frame.
+
+use std::path::PathBuf;
+
+/// One action.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Command {
+    /// Restart the current scene from its initial state.
+    Reset,
+    /// Hand the running cloth to another backend.
+    SwitchBackend(String),
+    /// Load a scene file (validation errors are shown; nothing is opened then).
+    OpenScene(PathBuf),
+    /// Save the edited scene (atomically: temporary file, then rename).
+    SaveScene(PathBuf),
+    /// Advance exactly one frame (while paused).
+    StepOnce,
+}

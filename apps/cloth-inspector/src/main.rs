@@ -1,0 +1,61 @@
+//! `cloth-inspector`: see the cloth, edit every parameter live, switch backends at runtime.
+//!
+//! `cloth-inspector --scene FILE --backend NAME --frames N --screenshot OUT.png` runs without
+//! user input and writes the window's image.
+
+mod app;
+mod camera;
+mod commands;
+mod panels;
+mod render;
+mod state;
+mod stats;
+
+use std::path::PathBuf;
+
+use anyhow::{Result, anyhow, bail};
+use clap::Parser;
+
+#[derive(Parser)]
+#[command(name = "cloth-inspector", version, about = "Interactive inspector of the cloth simulation")]
+struct Args {
+    /// RON scene to open (default: the scene of the last session, or the drape scene).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Backend to start on: cpu, cpu-f64, wgpu or vulkano.
+    #[arg(long)]
+    backend: Option<String>,
+    /// With --screenshot: frames to simulate before taking it.
+    #[arg(long, default_value_t = 120)]
+    frames: u32,
+    /// Simulate, write the window's image to this PNG, and quit (no user input needed).
+    #[arg(long)]
+    screenshot: Option<PathBuf>,
+}
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+        bail!(
+            "no display (neither DISPLAY nor WAYLAND_DISPLAY is set): run it on a desktop, under Xvfb \
+             (xvfb-run -a cloth-inspector ...), or use the headless `cloth run --png` instead"
+        );
+    }
+    if let Some(b) = &args.backend {
+        cloth_backends::find(b).map_err(|e| anyhow!(e))?;
+    }
+    let options = app::LaunchOptions {
+        scene: args.scene,
+        backend: args.backend,
+        screenshot: args.screenshot.map(|p| (args.frames, p)),
+    };
+    let native = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_inner_size([1280.0, 800.0])
+            .with_title("Cloth inspector"),
+        persist_window: options.screenshot.is_none(),
+        ..Default::default()
+    };
+    eframe::run_native("cloth-inspector", native, Box::new(move |cc| Ok(Box::new(app::InspectorApp::new(cc, options)))))
+        .map_err(|e| anyhow!("the inspector window failed: {e}"))
+}

@@ -1,0 +1,59 @@
+//! The inspector's panels, one module each. A panel edits the scene draft and queues commands;
+//! it never touches the simulator directly.
+
+pub mod backend;
+pub mod cloth;
+pub mod contact;
+pub mod effects;
+pub mod scene;
+pub mod springs;
+pub mod stats;
+pub mod time;
+
+use cloth_core::{Problem, Scene};
+use eframe::egui;
+
+use crate::commands::Command;
+
+/// What a panel may read and change.
+pub struct PanelContext<'a> {
+    /// The scene being edited.
+    pub scene: &'a mut Scene,
+    /// Validation problems of the edited scene (shown next to their fields; not applied).
+    pub problems: &'a [Problem],
+    /// Commands to apply after the frame.
+    pub commands: &'a mut Vec<Command>,
+}
+
+/// A number with its unit; returns whether it changed.
+pub fn quantity(ui: &mut egui::Ui, label: &str, value: &mut f64, unit: &str, speed: f64) -> bool {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        ui.add(egui::DragValue::new(value).speed(speed).suffix(format!(" {unit}")).max_decimals(6))
+            .on_hover_text(format!("{label}, in {unit}"))
+            .changed()
+    })
+    .inner
+}
+
+/// A 3-vector with its unit.
+pub fn vector(ui: &mut egui::Ui, label: &str, value: &mut [f64; 3], unit: &str, speed: f64) -> bool {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        let mut changed = false;
+        for (axis, v) in ["x", "y", "z"].iter().zip(value.iter_mut()) {
+            changed |=
+                ui.add(egui::DragValue::new(v).speed(speed).prefix(format!("{axis} ")).max_decimals(4)).changed();
+        }
+        ui.label(unit);
+        changed
+    })
+    .inner
+}
+
+/// Shows, in red, the validation problems whose field path starts with `prefix`.
+pub fn problems_for(ui: &mut egui::Ui, problems: &[Problem], prefix: &str) {
+    for p in problems.iter().filter(|p| p.field.starts_with(prefix)) {
+        ui.colored_label(egui::Color32::from_rgb(220, 50, 50), format!("⚠ {}: {} — {}", p.field, p.message, p.fix));
+    }
+}

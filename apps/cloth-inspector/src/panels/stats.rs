@@ -1,0 +1,37 @@
+//! Stats panel: cost per frame, throughput, stability margin, energy and penetration over time.
+
+use cloth_core::{Scene, stability};
+use eframe::egui;
+use egui_plot::{Legend, Line, Plot, PlotPoints};
+
+use crate::stats::Stats;
+
+pub fn show(ui: &mut egui::Ui, stats: &Stats, scene: &Scene) {
+    ui.label(format!("{:.3} ms per frame on the backend (advance + read-back)", stats.ms_per_frame));
+    ui.label(format!("{:.3e} vertex-substeps per second", stats.vertex_substeps_per_s));
+    let margin = stability::stability_margin(scene);
+    let color = if margin > 1.0 {
+        egui::Color32::from_rgb(220, 40, 40)
+    } else if margin > 0.8 {
+        egui::Color32::from_rgb(230, 160, 30)
+    } else {
+        egui::Color32::from_rgb(60, 170, 80)
+    };
+    ui.label("Stability margin (substep / largest stable substep)");
+    ui.add(egui::ProgressBar::new((margin / 1.5).min(1.0) as f32).fill(color).text(format!("{margin:.2}")));
+    if margin > 1.0 {
+        ui.colored_label(color, "above 1: the simulation will blow up — raise the substeps");
+    }
+    let series = |f: fn(&crate::stats::Sample) -> f64| -> PlotPoints<'static> {
+        stats.samples.iter().map(|s| [s.time_s, f(s)]).collect::<Vec<_>>().into()
+    };
+    ui.label("Energy (J) against simulated time (s)");
+    Plot::new("energy").height(150.0).legend(Legend::default()).show(ui, |plot| {
+        plot.line(Line::new("kinetic", series(|s| s.kinetic_j)));
+        plot.line(Line::new("elastic", series(|s| s.elastic_j)));
+    });
+    ui.label("Max penetration (mm) against simulated time (s)");
+    Plot::new("penetration").height(120.0).show(ui, |plot| {
+        plot.line(Line::new("max penetration", series(|s| s.max_penetration_m * 1e3)));
+    });
+}

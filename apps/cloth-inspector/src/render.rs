@@ -1,0 +1,537 @@
+//! The 3D view, rendered with wgpu on eframe's device into an offscreen texture that egui shows.
+//!
+//! The cloth is drawn from a position buffer: with the wgpu backend it is the simulation's own
+//! buffer (no read-back); other backends' states are uploaded once per frame.
+
+use bytemuck::{Pod, Zeroable};
+use cloth_core::layout::GpuSphere;
+use cloth_core::{ClothModel, ClothState};
+use eframe::egui_wgpu::RenderState;
+use eframe::wgpu;
+use wgpu::util::DeviceExt;
+
+const SHADER: &str = include_str!("../../../shaders/wgsl/render.wgsl");
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// egui shows native textures of this format and takes their values as sRGB-encoded, so the
+/// shaders' colours are written as they are.
+const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct CameraUniform {
+    view_proj: [[f32; 4]; 4],
+    eye: [f32; 4],
+    light: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct ClothInfo {
+    nx: u32,
+    ny: u32,
+    color_mode: u32,
+    sphere_count: u32,
+    rest_du: f32,
+    rest_dv: f32,
+    speed_scale: f32,
+    strain_scale: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct MeshVertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct InstanceData {
+    center_radius: [f32; 4],
+    color: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct LineVertex {
+    position: [f32; 3],
+    color: [f32; 4],
+}
+
+/// How the cloth is coloured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum ColorMode {
+    /// One colour, two-sided.
+    Plain,
+    /// Stretch of the structural springs.
+    Strain,
+    /// Free, sticking or sliding on a sphere.
+    Contact,
+    /// Speed.
+    Speed,
+}
+
+/// Where the cloth's vertices come from this frame.
+pub enum Source<'a> {
+    /// Buffers on eframe's device (the wgpu backend's own buffers).
+    Device { positions: &'a wgpu::Buffer, velocities: &'a wgpu::Buffer },
+    /// A state read back from another backend, uploaded now.
+    Host(&'a ClothState),
+}
+
+/// What to draw.
+pub struct ViewInputs<'a> {
+    pub view_proj: glam::Mat4,
+    pub eye: glam::Vec3,
+    pub color_mode: ColorMode,
+    pub wireframe: bool,
+    pub source: Source<'a>,
+}
+
+struct Target {
+    size: [u32; 2],
+    _texture: wgpu::Texture,
+    render_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    texture_id: eframe::egui::TextureId,
+}
+
+/// GPU objects of one grid (rebuilt when the grid changes).
+struct Mesh {
+    nx: u32,
+    ny: u32,
+    triangles: wgpu::Buffer,
+    triangle_count: u32,
+    lines: wgpu::Buffer,
+    line_count: u32,
+    upload_positions: wgpu::Buffer,
+    upload_velocities: wgpu::Buffer,
+}
+
+/// Renders the scene for the inspector's 3D view.
+pub struct ViewRenderer {
+    layout: wgpu::BindGroupLayout,
+    cloth: wgpu::RenderPipeline,
+    wire: wgpu::RenderPipeline,
+    instances: wgpu::RenderPipeline,
+    lines: wgpu::RenderPipeline,
+    camera: wgpu::Buffer,
+    cloth_info: wgpu::Buffer,
+    spheres: wgpu::Buffer,
+    sphere_mesh: (wgpu::Buffer, wgpu::Buffer, u32),
+    ground: (wgpu::Buffer, u32),
+    mesh: Option<Mesh>,
+    target: Option<Target>,
+}
+
+fn uv_sphere(segments: u32, rings: u32) -> (Vec<MeshVertex>, Vec<u32>) {
+    let mut vertices = Vec::new();
+    for r in 0..=rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..=segments {
+            let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
+            let n = [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()];
+            vertices.push(MeshVertex { position: n, normal: n });
+        }
+    }
+    let mut indices = Vec::new();
+    for r in 0..rings {
+        for s in 0..segments {
+            let a = r * (segments + 1) + s;
+            let b = a + segments + 1;
+            indices.extend_from_slice(&[a, b, a + 1, a + 1, b, b + 1]);
+        }
+    }
+    (vertices, indices)
+}
+
+fn ground_grid() -> Vec<LineVertex> {
+    let mut v = Vec::new();
+    let half = 5;
+    for k in -half..=half {
+        let c = if k == 0 { [0.35, 0.35, 0.4, 1.0] } else { [0.62, 0.64, 0.68, 1.0] };
+        let k = k as f32 * 0.5;
+        let e = half as f32 * 0.5;
+        v.push(LineVertex { position: [k, 0.0, -e], color: c });
+        v.push(LineVertex { position: [k, 0.0, e], color: c });
+        v.push(LineVertex { position: [-e, 0.0, k], color: c });
+        v.push(LineVertex { position: [e, 0.0, k], color: c });
+    }
+    v
+}
+
+impl ViewRenderer {
+    /// Creates the pipelines on eframe's device.
+    pub fn new(rs: &RenderState) -> Self {
+        let device = &rs.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("render.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let uniform = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let storage = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("view bind group layout"),
+            entries: &[uniform(0), uniform(1), storage(2), storage(3), storage(4)],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("view pipeline layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |label: &str,
+                        vs: &str,
+                        fs: &str,
+                        buffers: &[Option<wgpu::VertexBufferLayout>],
+                        topology: wgpu::PrimitiveTopology,
+                        bias: i32| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some(vs),
+                    buffers,
+                    compilation_options: Default::default(),
+                },
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(fs),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: COLOR,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                    compilation_options: Default::default(),
+                }),
+                primitive: wgpu::PrimitiveState { topology, cull_mode: None, ..Default::default() },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                    stencil: Default::default(),
+                    bias: wgpu::DepthBiasState { constant: bias, slope_scale: 0.0, clamp: 0.0 },
+                }),
+                multisample: Default::default(),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let mesh_layout = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: size_of::<MeshVertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: size_of::<InstanceData>() as u64,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &wgpu::vertex_attr_array![2 => Float32x4, 3 => Float32x4],
+            }),
+        ];
+        let line_layout = [Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<LineVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4],
+        })];
+        // The cloth's triangles are pushed back slightly so the wireframe drawn over them wins the
+        // depth test (line topologies cannot carry a depth bias).
+        let cloth = pipeline("cloth pipeline", "vs_cloth", "fs_cloth", &[], wgpu::PrimitiveTopology::TriangleList, 2);
+        let wire =
+            pipeline("cloth wireframe pipeline", "vs_cloth", "fs_wire", &[], wgpu::PrimitiveTopology::LineList, 0);
+        let instances = pipeline(
+            "sphere pipeline",
+            "vs_instance",
+            "fs_lit",
+            &mesh_layout,
+            wgpu::PrimitiveTopology::TriangleList,
+            0,
+        );
+        let lines =
+            pipeline("ground pipeline", "vs_line", "fs_line", &line_layout, wgpu::PrimitiveTopology::LineList, 0);
+        let buffer = |label: &str, size: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+        };
+        let copy_uniform = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
+        let (sphere_vertices, sphere_indices) = uv_sphere(48, 24);
+        let sphere_mesh = (
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("sphere mesh vertices"),
+                contents: bytemuck::cast_slice(&sphere_vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            }),
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("sphere mesh indices"),
+                contents: bytemuck::cast_slice(&sphere_indices),
+                usage: wgpu::BufferUsages::INDEX,
+            }),
+            sphere_indices.len() as u32,
+        );
+        let grid = ground_grid();
+        let ground = (
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("ground grid"),
+                contents: bytemuck::cast_slice(&grid),
+                usage: wgpu::BufferUsages::VERTEX,
+            }),
+            grid.len() as u32,
+        );
+        Self {
+            layout,
+            cloth,
+            wire,
+            instances,
+            lines,
+            camera: buffer("view camera", size_of::<CameraUniform>() as u64, copy_uniform),
+            cloth_info: buffer("view cloth info", size_of::<ClothInfo>() as u64, copy_uniform),
+            spheres: buffer("view spheres", 32 * 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST),
+            sphere_mesh,
+            ground,
+            mesh: None,
+            target: None,
+        }
+    }
+
+    fn mesh_for(&mut self, device: &wgpu::Device, model: &ClothModel) -> &Mesh {
+        let (nx, ny) = (model.grid.nx, model.grid.ny);
+        if self.mesh.as_ref().is_none_or(|m| m.nx != nx || m.ny != ny) {
+            let triangles = model.grid.triangle_indices();
+            let mut lines = Vec::new();
+            for j in 0..ny {
+                for i in 0..nx {
+                    let a = j * nx + i;
+                    if i + 1 < nx {
+                        lines.extend_from_slice(&[a, a + 1]);
+                    }
+                    if j + 1 < ny {
+                        lines.extend_from_slice(&[a, a + nx]);
+                    }
+                }
+            }
+            let state_bytes = (nx as u64 * ny as u64 * 16).max(16);
+            let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+            self.mesh = Some(Mesh {
+                nx,
+                ny,
+                triangle_count: triangles.len() as u32,
+                triangles: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("cloth triangles"),
+                    contents: bytemuck::cast_slice(&triangles),
+                    usage: wgpu::BufferUsages::INDEX,
+                }),
+                line_count: lines.len() as u32,
+                lines: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("cloth wireframe"),
+                    contents: bytemuck::cast_slice(&lines),
+                    usage: wgpu::BufferUsages::INDEX,
+                }),
+                upload_positions: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("cloth positions (uploaded)"),
+                    size: state_bytes,
+                    usage: storage,
+                    mapped_at_creation: false,
+                }),
+                upload_velocities: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("cloth velocities (uploaded)"),
+                    size: state_bytes,
+                    usage: storage,
+                    mapped_at_creation: false,
+                }),
+            });
+        }
+        self.mesh.as_ref().expect("just built")
+    }
+
+    fn ensure_target(&mut self, rs: &RenderState, size: [u32; 2]) {
+        if self.target.as_ref().is_none_or(|t| t.size != size) {
+            let device = &rs.device;
+            let extent = wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 };
+            let texture = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("view colour"),
+                size: extent,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: COLOR,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            });
+            let render_view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+            let sample_view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+            let depth = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("view depth"),
+                size: extent,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DEPTH,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                view_formats: &[],
+            });
+            let depth_view = depth.create_view(&Default::default());
+            let mut renderer = rs.renderer.write();
+            let texture_id = match self.target.take() {
+                Some(old) => {
+                    renderer.update_egui_texture_from_wgpu_texture(
+                        device,
+                        &sample_view,
+                        wgpu::FilterMode::Linear,
+                        old.texture_id,
+                    );
+                    old.texture_id
+                }
+                None => renderer.register_native_texture(device, &sample_view, wgpu::FilterMode::Linear),
+            };
+            self.target = Some(Target { size, _texture: texture, render_view, depth_view, texture_id });
+        }
+    }
+
+    /// Draws the scene into a `size`-pixel texture and returns its egui id.
+    pub fn render(
+        &mut self,
+        rs: &RenderState,
+        size: [u32; 2],
+        model: &ClothModel,
+        inputs: &ViewInputs<'_>,
+    ) -> eframe::egui::TextureId {
+        let size = [size[0].clamp(1, 8192), size[1].clamp(1, 8192)];
+        let (device, queue) = (&rs.device, &rs.queue);
+        let scene = &model.scene;
+        let camera = CameraUniform {
+            view_proj: inputs.view_proj.to_cols_array_2d(),
+            eye: inputs.eye.extend(1.0).into(),
+            light: [0.35, 0.85, 0.4, 0.0],
+        };
+        queue.write_buffer(&self.camera, 0, bytemuck::bytes_of(&camera));
+        let [nx, ny] = scene.cloth.resolution;
+        let info = ClothInfo {
+            nx,
+            ny,
+            color_mode: inputs.color_mode as u32,
+            sphere_count: scene.spheres.len().min(16) as u32,
+            rest_du: (scene.cloth.size[0] / (nx.max(2) - 1) as f64) as f32,
+            rest_dv: (scene.cloth.size[1] / (ny.max(2) - 1) as f64) as f32,
+            speed_scale: 3.0,
+            strain_scale: 0.05,
+        };
+        queue.write_buffer(&self.cloth_info, 0, bytemuck::bytes_of(&info));
+        let spheres: Vec<GpuSphere> = scene.spheres.iter().take(16).map(GpuSphere::from_spec).collect();
+        if !spheres.is_empty() {
+            queue.write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
+        }
+        let mut instances: Vec<InstanceData> = scene
+            .spheres
+            .iter()
+            .map(|s| InstanceData {
+                // Slightly smaller than the collider: the cloth rests on its vertices, and the flat
+                // triangles between them would otherwise be pierced by the curved surface.
+                center_radius: [s.center[0] as f32, s.center[1] as f32, s.center[2] as f32, 0.985 * s.radius as f32],
+                color: [0.55, 0.6, 0.68, 1.0],
+            })
+            .collect();
+        let marker = 0.25 * (info.rest_du.min(info.rest_dv)).max(0.004);
+        for (i, _) in model.grid.pinned.iter().enumerate().filter(|(_, p)| **p) {
+            let p = model.grid.positions[i];
+            instances.push(InstanceData {
+                center_radius: [p[0] as f32, p[1] as f32, p[2] as f32, marker],
+                color: [0.9, 0.1, 0.1, 1.0],
+            });
+        }
+        let instance_buffer = (!instances.is_empty()).then(|| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("view instances"),
+                contents: bytemuck::cast_slice(&instances),
+                usage: wgpu::BufferUsages::VERTEX,
+            })
+        });
+        self.mesh_for(device, model);
+        let mesh = self.mesh.as_ref().expect("built");
+        let (positions, velocities) = match &inputs.source {
+            Source::Device { positions, velocities } => (*positions, *velocities),
+            Source::Host(state) => {
+                let p: Vec<[f32; 4]> = state.positions.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect();
+                let v: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
+                queue.write_buffer(&mesh.upload_positions, 0, bytemuck::cast_slice(&p));
+                queue.write_buffer(&mesh.upload_velocities, 0, bytemuck::cast_slice(&v));
+                (&mesh.upload_positions, &mesh.upload_velocities)
+            }
+        };
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("view bind group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.camera.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: self.cloth_info.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: positions.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: velocities.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: self.spheres.as_entire_binding() },
+            ],
+        });
+        let (triangle_count, line_count) = (mesh.triangle_count, mesh.line_count);
+        let (triangles, lines) = (mesh.triangles.clone(), mesh.lines.clone());
+        self.ensure_target(rs, size);
+        let target = self.target.as_ref().expect("just built");
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("view") });
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("view pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &target.render_view,
+                    resolve_target: None,
+                    depth_slice: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r: 0.78, g: 0.82, b: 0.88, a: 1.0 }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &target.depth_view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_pipeline(&self.lines);
+            pass.set_vertex_buffer(0, self.ground.0.slice(..));
+            pass.draw(0..self.ground.1, 0..1);
+            if let Some(instance_buffer) = &instance_buffer {
+                pass.set_pipeline(&self.instances);
+                pass.set_vertex_buffer(0, self.sphere_mesh.0.slice(..));
+                pass.set_vertex_buffer(1, instance_buffer.slice(..));
+                pass.set_index_buffer(self.sphere_mesh.1.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..self.sphere_mesh.2, 0, 0..instances.len() as u32);
+            }
+            pass.set_pipeline(&self.cloth);
+            pass.set_index_buffer(triangles.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..triangle_count, 0, 0..1);
+            if inputs.wireframe {
+                pass.set_pipeline(&self.wire);
+                pass.set_index_buffer(lines.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..line_count, 0, 0..1);
+            }
+        }
+        queue.submit([encoder.finish()]);
+        target.texture_id
+    }
+}

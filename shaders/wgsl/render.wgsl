@@ -1,0 +1,158 @@
+// The inspector's 3D view: the cloth straight from the simulation's position buffer (normals
+// and colours computed here, on the GPU), instanced spheres and pin markers, and a ground grid.
+
+struct Camera {
+    view_proj: mat4x4<f32>,
+    eye: vec4<f32>,
+    light: vec4<f32>,        // direction towards the light
+};
+
+struct ClothInfo {
+    nx: u32,
+    ny: u32,
+    color_mode: u32,         // 0 plain, 1 strain, 2 contact, 3 speed
+    sphere_count: u32,
+    rest_du: f32,            // rest spacing along u, m
+    rest_dv: f32,            // rest spacing along v, m
+    speed_scale: f32,        // m/s shown as full colour
+    strain_scale: f32,       // strain shown as full colour
+};
+
+// cloth_core::layout::GpuSphere.
+struct Sphere {
+    center: vec3<f32>,
+    radius: f32,
+    stiffness: f32,
+    friction: f32,
+    damping: f32,
+    pad: f32,
+};
+
+@group(0) @binding(0) var<uniform> camera: Camera;
+@group(0) @binding(1) var<uniform> cloth: ClothInfo;
+@group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> velocities: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> spheres: array<Sphere>;
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) normal: vec3<f32>,
+    @location(1) color: vec3<f32>,
+    @location(2) world: vec3<f32>,
+};
+
+fn p(i: u32, j: u32) -> vec3<f32> {
+    return positions[j * cloth.nx + i].xyz;
+}
+
+fn ramp(t: f32) -> vec3<f32> {
+    let x = clamp(t, 0.0, 1.0);
+    return mix(mix(vec3<f32>(0.15, 0.35, 0.9), vec3<f32>(0.2, 0.85, 0.3), min(x * 2.0, 1.0)),
+               vec3<f32>(0.95, 0.2, 0.1), max(x * 2.0 - 1.0, 0.0));
+}
+
+@vertex
+fn vs_cloth(@builtin(vertex_index) index: u32) -> VsOut {
+    let i = index % cloth.nx;
+    let j = index / cloth.nx;
+    let x = p(i, j);
+    let du = p(min(i + 1u, cloth.nx - 1u), j) - p(max(i, 1u) - 1u, j);
+    let dv = p(i, min(j + 1u, cloth.ny - 1u)) - p(i, max(j, 1u) - 1u);
+    var out: VsOut;
+    out.clip = camera.view_proj * vec4<f32>(x, 1.0);
+    out.normal = normalize(cross(du, dv));
+    out.world = x;
+    var color = vec3<f32>(0.92, 0.45, 0.2);
+    let v = velocities[index].xyz;
+    if (cloth.color_mode == 1u) {
+        // Strain of the structural springs: mean |L/L0 - 1| over the 4-neighbours.
+        var strain = 0.0;
+        var n = 0.0;
+        if (i + 1u < cloth.nx) { strain += abs(length(p(i + 1u, j) - x) / cloth.rest_du - 1.0); n += 1.0; }
+        if (i > 0u) { strain += abs(length(p(i - 1u, j) - x) / cloth.rest_du - 1.0); n += 1.0; }
+        if (j + 1u < cloth.ny) { strain += abs(length(p(i, j + 1u) - x) / cloth.rest_dv - 1.0); n += 1.0; }
+        if (j > 0u) { strain += abs(length(p(i, j - 1u) - x) / cloth.rest_dv - 1.0); n += 1.0; }
+        color = ramp(strain / max(n, 1.0) / cloth.strain_scale);
+    } else if (cloth.color_mode == 2u) {
+        // Contact: free (grey-blue), sticking (green), sliding (red).
+        color = vec3<f32>(0.55, 0.6, 0.75);
+        for (var s = 0u; s < cloth.sphere_count; s++) {
+            let offset = x - spheres[s].center;
+            let d = length(offset);
+            if (d < spheres[s].radius * 1.002) {
+                let nrm = offset / max(d, 1e-9);
+                let v_t = v - nrm * dot(v, nrm);
+                if (length(v_t) < 1e-3) { color = vec3<f32>(0.2, 0.8, 0.3); } else { color = vec3<f32>(0.95, 0.25, 0.15); }
+            }
+        }
+    } else if (cloth.color_mode == 3u) {
+        color = ramp(length(v) / cloth.speed_scale);
+    }
+    out.color = color;
+    return out;
+}
+
+fn shade(normal: vec3<f32>, color: vec3<f32>) -> vec3<f32> {
+    let l = normalize(camera.light.xyz);
+    let diffuse = max(dot(normal, l), 0.0);
+    return color * (0.3 + 0.7 * diffuse);
+}
+
+@fragment
+fn fs_cloth(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    var n = normalize(in.normal);
+    var color = in.color;
+    if (!front) {
+        n = -n;
+        color = color * vec3<f32>(0.55, 0.75, 1.0);
+    }
+    return vec4<f32>(shade(n, color), 1.0);
+}
+
+@fragment
+fn fs_wire(in: VsOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(0.08, 0.08, 0.1, 1.0);
+}
+
+struct Instance {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) center_radius: vec4<f32>,
+    @location(3) color: vec4<f32>,
+};
+
+@vertex
+fn vs_instance(in: Instance) -> VsOut {
+    let world = in.center_radius.xyz + in.position * in.center_radius.w;
+    var out: VsOut;
+    out.clip = camera.view_proj * vec4<f32>(world, 1.0);
+    out.normal = in.normal;
+    out.color = in.color.rgb;
+    out.world = world;
+    return out;
+}
+
+@fragment
+fn fs_lit(in: VsOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(shade(normalize(in.normal), in.color), 1.0);
+}
+
+struct LineVertex {
+    @location(0) position: vec3<f32>,
+    @location(1) color: vec4<f32>,
+};
+
+@vertex
+fn vs_line(in: LineVertex) -> VsOut {
+    var out: VsOut;
+    out.clip = camera.view_proj * vec4<f32>(in.position, 1.0);
+    out.normal = vec3<f32>(0.0, 1.0, 0.0);
+    out.color = in.color.rgb;
+    out.world = in.position;
+    return out;
+}
+
+@fragment
+fn fs_line(in: VsOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(in.color, 1.0);
+}
