@@ -1,7 +1,8 @@
 //! Set-up and task runner of the cloth workbench.
 //!
-//! * `cargo xtask run [ARGS...]`: installs what is missing, then runs the main job
-//!   (`cloth run` on the default drape scene, writing `out/drape.png`);
+//! * `cargo xtask run [ARGS...]`: installs what is missing, then opens the inspector on the
+//!   default drape scene; without a display it says so and runs `cloth run`, writing
+//!   `out/drape.png`;
 //! * `cargo xtask test`: installs what is missing, then runs every check CI runs
 //!   (`cargo fmt --check`, `cargo clippy -D warnings`, `cargo test --workspace`);
 //! * `cargo xtask setup`: only installs the system packages.
@@ -32,6 +33,14 @@ const PACKAGES: &[Package] = &[
         name: "vulkan-validationlayers",
         why: "the Khronos validation layer: debug test runs of the vulkano backend fail on any message",
     },
+    Package { name: "xvfb", why: "a virtual X display: the inspector's screenshot tests run under xvfb-run" },
+    Package { name: "xauth", why: "used by xvfb-run" },
+    Package { name: "libxkbcommon-x11-0", why: "keyboard handling of the inspector's window (winit)" },
+    Package { name: "libx11-xcb1", why: "X11 connection of the inspector's window (winit)" },
+    Package { name: "libegl1", why: "EGL, for the inspector's window surface" },
+    Package { name: "libegl-mesa0", why: "Mesa's EGL" },
+    Package { name: "libgl1-mesa-dri", why: "Mesa's drivers" },
+    Package { name: "libgles2", why: "GLES, for eframe's fallback renderer" },
 ];
 
 fn main() -> Result<()> {
@@ -50,7 +59,7 @@ fn main() -> Result<()> {
         }
         _ => {
             eprintln!("usage: cargo xtask <run [ARGS...] | test | setup>");
-            eprintln!("  run    install what is missing, then simulate the default drape scene (out/drape.png)");
+            eprintln!("  run    install what is missing, then open the inspector (headless: cloth run, out/drape.png)");
             eprintln!("  test   install what is missing, then fmt, clippy and every test");
             eprintln!("  setup  install the system packages the project needs");
             if task == "help" { Ok(()) } else { bail!("unknown task '{task}'") }
@@ -97,14 +106,25 @@ fn cargo() -> Command {
 }
 
 fn run_main_job(extra: &[String]) -> Result<()> {
+    let has_display = std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
+    if has_display {
+        let mut cmd = cargo();
+        cmd.args(["run", "--release", "--quiet", "--package", "cloth-inspector", "--"]);
+        if extra.is_empty() {
+            cmd.args(["--scene", "scenes/drape.ron"]);
+        } else {
+            cmd.args(extra);
+        }
+        return sh(&mut cmd);
+    }
+    eprintln!(
+        "xtask: no display (DISPLAY and WAYLAND_DISPLAY are unset), so the inspector cannot open a window;\n\
+         xtask: running the headless `cloth run` instead and writing the picture to out/drape.png"
+    );
     std::fs::create_dir_all("out").context("cannot create out/")?;
     let mut cmd = cargo();
     cmd.args(["run", "--release", "--quiet", "--package", "cloth-cli", "--bin", "cloth", "--", "run"]);
-    if extra.is_empty() {
-        cmd.args(["scenes/drape.ron", "--png", "out/drape.png"]);
-    } else {
-        cmd.args(extra);
-    }
+    cmd.args(["scenes/drape.ron", "--png", "out/drape.png"]);
     sh(&mut cmd)
 }
 

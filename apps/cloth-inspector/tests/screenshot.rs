@@ -1,0 +1,75 @@
+//! The inspector runs without user input under Xvfb and its screenshot shows the cloth, on every
+//! backend (not a blank or black frame).
+
+use std::path::Path;
+use std::process::Command;
+
+fn has_xvfb() -> bool {
+    Command::new("xvfb-run").arg("--help").output().is_ok()
+}
+
+/// Decodes an RGBA PNG to `(width, height, pixels)`.
+fn decode(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
+
+/// The cloth's plain colour, shaded: clearly orange (red well above blue).
+fn is_cloth(p: &[u8]) -> bool {
+    let (r, g, b) = (p[0] as i32, p[1] as i32, p[2] as i32);
+    r > 120 && r - b > 90 && g > 40 && g < r
+}
+
+/// The sphere's colour: grey-blue, blue above red.
+fn is_sphere(p: &[u8]) -> bool {
+    let (r, g, b) = (p[0] as i32, p[1] as i32, p[2] as i32);
+    b > r + 5 && g > r && r > 25 && b < 200
+}
+
+#[test]
+fn screenshot_shows_the_cloth_over_the_sphere_on_every_backend() {
+    if !has_xvfb() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "xvfb-run is missing and CI is set: install xvfb (cargo xtask setup)"
+        );
+        eprintln!("SKIPPED: xvfb-run is not installed");
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    for backend in ["cpu", "wgpu", "vulkano"] {
+        let out = std::env::temp_dir().join(format!("cloth-inspector-{backend}-{}.png", std::process::id()));
+        let status = Command::new("xvfb-run")
+            .args(["-a", "-s", "-screen 0 1280x800x24"])
+            .arg(env!("CARGO_BIN_EXE_cloth-inspector"))
+            .args(["--scene", "scenes/hold.ron", "--backend", backend, "--frames", "90", "--screenshot"])
+            .arg(&out)
+            .current_dir(&root)
+            .status()
+            .expect("xvfb-run starts");
+        assert!(status.success(), "{backend}: the inspector exited with {status}");
+        let (w, h, pixels) = decode(&out);
+        assert!(w >= 640 && h >= 400, "{backend}: {w}x{h}");
+        let total = (w * h) as usize;
+        let cloth = pixels.chunks_exact(4).filter(|p| is_cloth(p)).count();
+        let sphere = pixels.chunks_exact(4).filter(|p| is_sphere(p)).count();
+        let black = pixels.chunks_exact(4).filter(|p| p[0] < 8 && p[1] < 8 && p[2] < 8).count();
+        eprintln!("{backend}: {cloth} cloth, {sphere} sphere, {black} black pixels of {total}");
+        assert!(cloth > total / 100, "{backend}: only {cloth} cloth-coloured pixels of {total}");
+        assert!(sphere > total / 200, "{backend}: only {sphere} sphere-coloured pixels of {total}");
+        assert!(black < total / 2, "{backend}: the frame is mostly black");
+        // The cloth lies over the sphere: the mean row of cloth pixels is above the sphere's.
+        let mean_row = |f: fn(&[u8]) -> bool| {
+            let rows: Vec<usize> =
+                pixels.chunks_exact(4).enumerate().filter(|(_, p)| f(p)).map(|(i, _)| i / w as usize).collect();
+            rows.iter().sum::<usize>() as f64 / rows.len().max(1) as f64
+        };
+        assert!(mean_row(is_cloth) < mean_row(is_sphere), "{backend}: the cloth is not above the sphere");
+        let _ = std::fs::remove_file(out);
+    }
+}
