@@ -65,6 +65,9 @@ pub struct Runtime {
     render_state: Option<eframe::egui_wgpu::RenderState>,
     stats: Stats,
     problems: Vec<Problem>,
+    /// An edited scene the backend refused (e.g. too large for the device): not retried until
+    /// the scene changes again.
+    rejected: Option<(Scene, Problem)>,
     notices: Vec<String>,
     commands: Vec<Command>,
     browser: FileBrowser,
@@ -143,6 +146,7 @@ impl InspectorApp {
                 render_state,
                 stats: Stats::default(),
                 problems: Vec::new(),
+                rejected: None,
                 notices,
                 commands: Vec::new(),
                 browser: FileBrowser::default(),
@@ -157,7 +161,7 @@ impl InspectorApp {
             },
             state,
         };
-        app.rebuild(None);
+        app.rebuild();
         app
     }
 
@@ -179,9 +183,9 @@ impl InspectorApp {
         Ok(Sim::Boxed((backend.create)(scene, None)?))
     }
 
-    /// (Re)creates the simulator of the current backend, optionally continuing from `state`.
-    /// Falls back to the CPU when the backend cannot start.
-    fn rebuild(&mut self, state: Option<ClothState>) {
+    /// (Re)creates the simulator of the current backend from the scene's initial state. Falls
+    /// back to the CPU when the backend cannot start.
+    fn rebuild(&mut self) {
         let name = self.state.backend.clone();
         let sim = match self.create(&name) {
             Ok(sim) => Ok(sim),
@@ -193,20 +197,13 @@ impl InspectorApp {
         };
         match sim {
             Ok(mut sim) => {
-                if let Some(s) = &state
-                    && let Err(e) = sim.get().write_state(s)
-                {
-                    self.runtime.notices.push(format!("could not hand the state over: {e}"));
-                }
                 self.runtime.model = ClothModel::new(sim.scene());
                 self.runtime.host_state = sim.get().read_state().ok();
                 self.runtime.sim = Some(sim);
             }
             Err(e) => self.runtime.notices.push(format!("cannot start any backend: {e}")),
         }
-        if state.is_none() {
-            self.runtime.stats.clear();
-        }
+        self.runtime.stats.clear();
     }
 
     /// Hands the running cloth to another backend: read its state, start the new backend, write
@@ -232,7 +229,7 @@ impl InspectorApp {
 
     fn apply(&mut self, command: Command) {
         match command {
-            Command::Reset => self.rebuild(None),
+            Command::Reset => self.rebuild(),
             Command::SwitchBackend(name) => self.switch_backend(&name),
             Command::StepOnce => self.advance(1),
             Command::OpenScene(path) => match Scene::load(&path) {
@@ -240,7 +237,7 @@ impl InspectorApp {
                     self.state.scene = scene.clone();
                     self.state.saved_scene = scene;
                     self.state.scene_path = Some(path);
-                    self.rebuild(None);
+                    self.rebuild();
                 }
                 Err(e) => self.runtime.notices.push(format!("{} was not opened: {e}", path.display())),
             },
@@ -266,10 +263,40 @@ impl InspectorApp {
             Ok(_) => {
                 self.runtime.problems.clear();
                 if sim.scene().rebuild_reason(&self.state.scene).is_some() {
-                    self.rebuild(None);
+                    self.rebuild_for_edit();
                 } else if let Err(e) = sim.get().update_parameters(&self.state.scene) {
                     self.runtime.notices.push(format!("could not apply the change: {e}"));
                 }
+            }
+        }
+    }
+
+    /// Rebuilds for an edit that needs it. If the backend refuses the new scene (too large for the
+    /// device, say), the running simulation is kept and the reason is shown next to the field.
+    fn rebuild_for_edit(&mut self) {
+        if let Some((scene, problem)) = &self.runtime.rejected
+            && *scene == self.state.scene
+        {
+            self.runtime.problems = vec![problem.clone()];
+            return;
+        }
+        let name = self.state.backend.clone();
+        match self.create(&name) {
+            Ok(mut sim) => {
+                self.runtime.rejected = None;
+                self.runtime.model = ClothModel::new(sim.scene());
+                self.runtime.host_state = sim.get().read_state().ok();
+                self.runtime.sim = Some(sim);
+                self.runtime.stats.clear();
+            }
+            Err(e) => {
+                let problem = Problem {
+                    field: "cloth.resolution".into(),
+                    message: format!("the {name} backend cannot run this scene: {e}"),
+                    fix: "use a smaller grid, or another backend".into(),
+                };
+                self.runtime.problems = vec![problem.clone()];
+                self.runtime.rejected = Some((self.state.scene.clone(), problem));
             }
         }
     }
@@ -305,11 +332,14 @@ impl InspectorApp {
                 let work = scene.vertex_count() as f64 * scene.substeps_per_frame() as f64;
                 self.runtime.stats.record_timing(seconds, frames, work);
                 let energy = Energy::of(&self.runtime.model, &state);
+                // A backend tracks the deepest penetration since it was created; keep the running
+                // maximum across backend switches.
+                let previous = self.runtime.stats.samples.back().map_or(0.0, |s| s.max_penetration_m);
                 self.runtime.stats.push(Sample {
                     time_s: state.time_s,
                     kinetic_j: energy.kinetic,
                     elastic_j: energy.elastic.iter().sum(),
-                    max_penetration_m: diagnostics.max_penetration_m,
+                    max_penetration_m: diagnostics.max_penetration_m.max(previous),
                 });
                 if state.non_finite_count() > 0 {
                     self.state.playing = false;
@@ -578,6 +608,20 @@ impl eframe::App for InspectorApp {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn saving_replaces_the_file_whole_and_leaves_no_temporary() {
+        let dir = std::env::temp_dir().join(format!("cloth-inspector-save-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("scene.ron");
+        std::fs::write(&path, "old contents").unwrap();
+        let mut scene = Scene::default();
+        scene.name = "saved".into();
+        save_atomically(&scene, &path).unwrap();
+        assert_eq!(Scene::load(&path).unwrap(), scene);
+        assert!(!path.with_extension("ron.tmp").exists());
+        std::fs::remove_dir_all(dir).unwrap();
+    }
 
     /// The handover used when switching backends preserves the state exactly, across every
     /// backend that can start here, and the motion continues from it.
