@@ -25,7 +25,8 @@ pub struct VulkanContext {
     pub description: String,
     /// Whether the Khronos validation layer is enabled (debug builds, when it is installed).
     pub validation: bool,
-    /// Validation messages (warnings and errors) received so far.
+    /// Validation messages (warnings and errors) received so far in this process (the instance,
+    /// and so its messenger, is shared).
     pub messages: Arc<Mutex<Vec<String>>>,
 }
 
@@ -57,6 +58,35 @@ fn load_library() -> Result<Arc<VulkanLibrary>, SimError> {
              `apt-get install libvulkan1 mesa-vulkan-drivers` (mesa-vulkan-drivers gives lavapipe, a CPU driver)"
         ))
     })
+}
+
+/// The process's one Vulkan instance, whether validation is on, and where its messages go.
+struct SharedInstance {
+    instance: Arc<Instance>,
+    validation: bool,
+    messages: Arc<Mutex<Vec<String>>>,
+}
+
+/// Creates the instance once per process and shares it (debug builds enable validation when
+/// the layer is installed).
+///
+/// On an NVIDIA H100 (driver 580.159.04) creating and destroying instances repeatedly in one
+/// process made `vkCreateInstance` fail after about 20 cycles (seen with wgpu and vulkano
+/// alike); one shared instance avoids it, and saves its start-up cost.
+fn shared_instance() -> Result<&'static SharedInstance, SimError> {
+    static SHARED: std::sync::OnceLock<Result<SharedInstance, String>> = std::sync::OnceLock::new();
+    SHARED
+        .get_or_init(|| {
+            let messages = Arc::new(Mutex::new(Vec::new()));
+            create_instance(cfg!(debug_assertions), &messages)
+                .map(|(instance, validation)| SharedInstance { instance, validation, messages })
+                .map_err(|e| match e {
+                    SimError::Unavailable { reason, .. } => reason,
+                    other => other.to_string(),
+                })
+        })
+        .as_ref()
+        .map_err(|reason| unavailable(reason.clone()))
 }
 
 /// Creates an instance; with `validation`, enables the Khronos layer (if installed) and routes its
@@ -116,9 +146,8 @@ fn compute_devices(instance: &Arc<Instance>) -> Result<Vec<(Arc<PhysicalDevice>,
 /// # Errors
 /// A sentence saying what to install when there is none.
 pub fn list_devices() -> Result<Vec<String>, String> {
-    let messages = Arc::new(Mutex::new(Vec::new()));
-    let (instance, _) = create_instance(false, &messages).map_err(|e| e.to_string())?;
-    let devices = compute_devices(&instance).map_err(|e| e.to_string())?;
+    let shared = shared_instance().map_err(|e| e.to_string())?;
+    let devices = compute_devices(&shared.instance).map_err(|e| e.to_string())?;
     if devices.is_empty() {
         return Err(no_device_reason());
     }
@@ -139,9 +168,9 @@ impl VulkanContext {
     /// # Errors
     /// [`SimError::Unavailable`] without a loader, without a device, or when none matches.
     pub fn new(name_contains: Option<&str>) -> Result<Self, SimError> {
-        let messages = Arc::new(Mutex::new(Vec::new()));
-        let (instance, validation) = create_instance(cfg!(debug_assertions), &messages)?;
-        let devices = compute_devices(&instance)?;
+        let shared = shared_instance()?;
+        let (validation, messages) = (shared.validation, shared.messages.clone());
+        let devices = compute_devices(&shared.instance)?;
         let (physical, family) = match name_contains {
             None => devices.into_iter().next().ok_or_else(|| unavailable(no_device_reason()))?,
             Some(wanted) => {

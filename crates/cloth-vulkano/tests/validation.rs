@@ -20,7 +20,14 @@ fn simulator() -> Option<VulkanoSimulator> {
     }
 }
 
+/// One test, in order: the messages are shared by the process's one instance, so an injected
+/// message would fail any simulator running beside it.
 #[test]
+fn validation_is_on_in_debug_runs_and_any_message_fails_the_next_operation() {
+    validation_is_on_in_debug_runs_when_the_layer_is_installed();
+    a_validation_message_fails_the_next_operation();
+}
+
 fn validation_is_on_in_debug_runs_when_the_layer_is_installed() {
     let Some(sim) = simulator() else { return };
     let installed = ["/usr/share/vulkan/explicit_layer.d", "/etc/vulkan/explicit_layer.d"]
@@ -32,11 +39,11 @@ fn validation_is_on_in_debug_runs_when_the_layer_is_installed() {
     }
 }
 
-#[test]
 fn a_validation_message_fails_the_next_operation() {
     let Some(mut sim) = simulator() else { return };
     sim.advance(2).unwrap();
     sim.context().messages.lock().unwrap().push("ERROR: a message injected by this test".into());
     let err = sim.advance(1).unwrap_err().to_string();
+    sim.context().messages.lock().unwrap().clear();
     assert!(err.contains("Vulkan validation: ERROR: a message injected by this test"), "{err}");
 }

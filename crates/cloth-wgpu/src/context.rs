@@ -45,13 +45,21 @@ fn rank(device_type: wgpu::DeviceType) -> u8 {
     }
 }
 
-fn instance() -> wgpu::Instance {
-    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-    if wgpu::Backends::from_env().is_none() {
-        // Compute needs Vulkan, Metal or DX12; the GL backend cannot run these shaders.
-        desc.backends = wgpu::Backends::PRIMARY;
-    }
-    wgpu::Instance::new(desc)
+/// The process's one wgpu instance.
+///
+/// Created once and shared: on an NVIDIA H100 (driver 580.159.04) creating and dropping
+/// instances repeatedly in one process made instance creation fail after about 20 cycles (seen
+/// with wgpu and vulkano alike), and an instance costs over a second to create there.
+fn instance() -> &'static wgpu::Instance {
+    static INSTANCE: std::sync::OnceLock<wgpu::Instance> = std::sync::OnceLock::new();
+    INSTANCE.get_or_init(|| {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if wgpu::Backends::from_env().is_none() {
+            // Compute needs Vulkan, Metal or DX12; the GL backend cannot run these shaders.
+            desc.backends = wgpu::Backends::PRIMARY;
+        }
+        wgpu::Instance::new(desc)
+    })
 }
 
 /// Adapters able to run compute shaders, best first.
