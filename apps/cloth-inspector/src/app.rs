@@ -615,8 +615,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("scene.ron");
         std::fs::write(&path, "old contents").unwrap();
-        let mut scene = Scene::default();
-        scene.name = "saved".into();
+        let scene = Scene { name: "saved".into(), ..Default::default() };
         save_atomically(&scene, &path).unwrap();
         assert_eq!(Scene::load(&path).unwrap(), scene);
         assert!(!path.with_extension("ron.tmp").exists());
