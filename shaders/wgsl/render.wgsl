@@ -11,7 +11,11 @@ struct ClothInfo {
     nx: u32,
     ny: u32,
     color_mode: u32,         // 0 plain, 1 strain, 2 contact, 3 speed
+    strain_kind: u32,        // with strain: 0 structural, 1 shear, 2 bend
     sphere_count: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     rest_du: f32,            // rest spacing along u, m
     rest_dv: f32,            // rest spacing along v, m
     speed_scale: f32,        // m/s shown as full colour
@@ -65,13 +69,32 @@ fn vs_cloth(@builtin(vertex_index) index: u32) -> VsOut {
     var color = vec3<f32>(0.92, 0.45, 0.2);
     let v = velocities[index].xyz;
     if (cloth.color_mode == 1u) {
-        // Strain of the structural springs: mean |L/L0 - 1| over the 4-neighbours.
+        // Strain |L/L0 - 1| of one spring kind, averaged over the vertex's springs of that kind.
         var strain = 0.0;
         var n = 0.0;
-        if (i + 1u < cloth.nx) { strain += abs(length(p(i + 1u, j) - x) / cloth.rest_du - 1.0); n += 1.0; }
-        if (i > 0u) { strain += abs(length(p(i - 1u, j) - x) / cloth.rest_du - 1.0); n += 1.0; }
-        if (j + 1u < cloth.ny) { strain += abs(length(p(i, j + 1u) - x) / cloth.rest_dv - 1.0); n += 1.0; }
-        if (j > 0u) { strain += abs(length(p(i, j - 1u) - x) / cloth.rest_dv - 1.0); n += 1.0; }
+        let du = cloth.rest_du;
+        let dv = cloth.rest_dv;
+        let nx = i32(cloth.nx);
+        let ny = i32(cloth.ny);
+        for (var k = 0; k < 4; k++) {
+            var offset = vec2<i32>(0, 0);
+            var rest = 0.0;
+            if (cloth.strain_kind == 0u) {
+                offset = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1))[k];
+                rest = select(dv, du, offset.y == 0);
+            } else if (cloth.strain_kind == 1u) {
+                offset = array<vec2<i32>, 4>(vec2<i32>(1, 1), vec2<i32>(-1, 1), vec2<i32>(1, -1), vec2<i32>(-1, -1))[k];
+                rest = sqrt(du * du + dv * dv);
+            } else {
+                offset = array<vec2<i32>, 4>(vec2<i32>(2, 0), vec2<i32>(-2, 0), vec2<i32>(0, 2), vec2<i32>(0, -2))[k];
+                rest = select(2.0 * dv, 2.0 * du, offset.y == 0);
+            }
+            let q = vec2<i32>(i32(i), i32(j)) + offset;
+            if (q.x >= 0 && q.y >= 0 && q.x < nx && q.y < ny) {
+                strain += abs(length(p(u32(q.x), u32(q.y)) - x) / rest - 1.0);
+                n += 1.0;
+            }
+        }
         color = ramp(strain / max(n, 1.0) / cloth.strain_scale);
     } else if (cloth.color_mode == 2u) {
         // Contact: free (grey-blue), sticking (green), sliding (red).

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use cloth_core::{ClothModel, ClothState, CpuSimulator, Energy, Problem, Scene, SimError, Simulator};
+use cloth_core::{ClothModel, ClothState, CpuSimulator, Energy, Problem, Scene, SimError, Simulator, SpringKind};
 use cloth_wgpu::{GpuContext, WgpuSimulator};
 use eframe::egui;
 
@@ -52,6 +52,8 @@ pub struct LaunchOptions {
     pub backend: Option<String>,
     /// Headless run: simulate this many frames, write a screenshot, quit.
     pub screenshot: Option<(u32, PathBuf)>,
+    /// Cloth colouring to start with.
+    pub color: Option<ColorMode>,
 }
 
 /// Runtime resources: never persisted.
@@ -124,6 +126,9 @@ impl InspectorApp {
         }
         if let Some(b) = &options.backend {
             state.backend = b.clone();
+        }
+        if let Some(c) = options.color {
+            state.color_mode = c;
         }
         if headless {
             state.playing = true;
@@ -556,7 +561,9 @@ impl eframe::App for InspectorApp {
                     ui.horizontal_wrapped(|ui| {
                         for (mode, label) in [
                             (ColorMode::Plain, "plain"),
-                            (ColorMode::Strain, "strain"),
+                            (ColorMode::Strain(SpringKind::Structural), "strain: structural"),
+                            (ColorMode::Strain(SpringKind::Shear), "shear"),
+                            (ColorMode::Strain(SpringKind::Bend), "bend"),
                             (ColorMode::Contact, "contact"),
                             (ColorMode::Speed, "speed"),
                         ] {

@@ -31,6 +31,9 @@ struct Args {
     /// Simulate, write the window's image to this PNG, and quit (no user input needed).
     #[arg(long)]
     screenshot: Option<PathBuf>,
+    /// Colour the cloth by: plain, strain (structural), shear, bend, contact or speed.
+    #[arg(long, value_parser = ["plain", "strain", "shear", "bend", "contact", "speed"])]
+    color: Option<String>,
 }
 
 fn main() -> Result<()> {
@@ -48,6 +51,14 @@ fn main() -> Result<()> {
         scene: args.scene,
         backend: args.backend,
         screenshot: args.screenshot.map(|p| (args.frames, p)),
+        color: args.color.map(|c| match c.as_str() {
+            "strain" => render::ColorMode::Strain(cloth_core::SpringKind::Structural),
+            "shear" => render::ColorMode::Strain(cloth_core::SpringKind::Shear),
+            "bend" => render::ColorMode::Strain(cloth_core::SpringKind::Bend),
+            "contact" => render::ColorMode::Contact,
+            "speed" => render::ColorMode::Speed,
+            _ => render::ColorMode::Plain,
+        }),
     };
     let native = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()

@@ -30,7 +30,9 @@ struct ClothInfo {
     nx: u32,
     ny: u32,
     color_mode: u32,
+    strain_kind: u32,
     sphere_count: u32,
+    _pad: [u32; 3],
     rest_du: f32,
     rest_dv: f32,
     speed_scale: f32,
@@ -63,8 +65,8 @@ struct LineVertex {
 pub enum ColorMode {
     /// One colour, two-sided.
     Plain,
-    /// Stretch of the structural springs.
-    Strain,
+    /// Stretch `|L/L0 − 1|` of the springs of one kind (blue 0, red 5%).
+    Strain(cloth_core::SpringKind),
     /// Free, sticking or sliding on a sphere.
     Contact,
     /// Speed.
@@ -425,8 +427,18 @@ impl ViewRenderer {
         let info = ClothInfo {
             nx,
             ny,
-            color_mode: inputs.color_mode as u32,
+            color_mode: match inputs.color_mode {
+                ColorMode::Plain => 0,
+                ColorMode::Strain(_) => 1,
+                ColorMode::Contact => 2,
+                ColorMode::Speed => 3,
+            },
+            strain_kind: match inputs.color_mode {
+                ColorMode::Strain(kind) => kind as u32,
+                _ => 0,
+            },
             sphere_count: scene.spheres.len().min(16) as u32,
+            _pad: [0; 3],
             rest_du: (scene.cloth.size[0] / (nx.max(2) - 1) as f64) as f32,
             rest_dv: (scene.cloth.size[1] / (ny.max(2) - 1) as f64) as f32,
             speed_scale: 3.0,
