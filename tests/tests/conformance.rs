@@ -425,3 +425,21 @@ fn wgpu_and_vulkano_agree() {
         assert!(d <= F32_TOLERANCE_M, "{name}: wgpu and vulkano differ by {d} m after {frames} frames");
     }
 }
+
+/// The GPU kernels run the brief's semi-implicit Euler only (so far): asking for another
+/// integrator is refused by name, never silently run with the wrong one.
+#[test]
+fn gpu_backends_refuse_integrators_they_do_not_run() {
+    let mut scene = with_grid(scene("drape.ron"), [8, 8]);
+    scene.integrator = cloth_core::Integrator::VelocityVerlet;
+    for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
+        match (backend.create)(&scene) {
+            Err(cloth_core::SimError::Unsupported { what, .. }) => assert!(what.contains("VelocityVerlet"), "{what}"),
+            Err(cloth_core::SimError::Unavailable { reason, .. }) if std::env::var_os("CI").is_none() => {
+                eprintln!("SKIPPED on backend {}: {reason}", backend.name)
+            }
+            Err(e) => panic!("{}: unexpected error {e}", backend.name),
+            Ok(_) => panic!("{} accepted an integrator it does not implement", backend.name),
+        }
+    }
+}

@@ -50,6 +50,23 @@ fn list(problems: &[Problem]) -> String {
     problems.iter().map(|p| format!("  - {p}")).collect::<Vec<_>>().join("\n")
 }
 
+impl SimError {
+    /// Refuses any integrator but the brief's semi-implicit Euler (what the GPU kernels run).
+    ///
+    /// # Errors
+    /// [`SimError::Unsupported`] naming the integrator and the alternatives.
+    pub fn require_euler(backend: &'static str, scene: &crate::Scene) -> Result<(), SimError> {
+        if scene.integrator == crate::Integrator::SemiImplicitEuler {
+            return Ok(());
+        }
+        Err(SimError::Unsupported {
+            backend,
+            what: format!("the {:?} integrator", scene.integrator),
+            fix: "use the cpu backend, or integrator: SemiImplicitEuler".into(),
+        })
+    }
+}
+
 impl SceneError {
     pub(crate) fn from_ron(e: ron::error::SpannedError) -> Self {
         SceneError::Parse { line: e.span.start.line, column: e.span.start.col, message: e.code.to_string() }
@@ -91,6 +108,16 @@ pub enum SimError {
         backend: &'static str,
         /// Why, and what to do.
         reason: String,
+    },
+    /// The backend does not implement something the scene asks for.
+    #[error("backend {backend} does not support {what} yet: {fix}")]
+    Unsupported {
+        /// Backend name.
+        backend: &'static str,
+        /// What the scene asks for.
+        what: String,
+        /// What to do instead.
+        fix: String,
     },
     /// The scene does not fit on the device.
     #[error(

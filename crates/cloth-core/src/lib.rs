@@ -8,7 +8,8 @@
 //! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
 //! * [`layout`]: the GPU buffer layouts (`#[repr(C)]`, `bytemuck`), shared by all backends;
 //! * [`forces`]: the brief's force model, one function per force;
-//! * [`reference`](mod@reference): the CPU reference stepper (semi-implicit Euler), the test oracle;
+//! * [`reference`](mod@reference): the CPU reference stepper, the test oracle;
+//! * [`integrator`]: semi-implicit Euler (the brief's), velocity Verlet, RK4;
 //! * [`stability`]: the largest stable substep;
 //! * [`simulator`]: the [`Simulator`] trait every backend implements;
 //! * [`energy`]: kinetic, elastic, gravitational and contact energy.
@@ -31,6 +32,7 @@ pub mod energy;
 pub mod error;
 pub mod forces;
 pub mod grid;
+pub mod integrator;
 pub mod layout;
 pub mod model;
 pub mod real;
@@ -44,6 +46,7 @@ pub mod validation;
 pub use effects::{Effect, EffectSet};
 pub use energy::Energy;
 pub use error::{Problem, SceneError, SimError};
+pub use integrator::Integrator;
 pub use model::ClothModel;
 pub use reference::{CpuSimulator, CpuSimulatorF64, ReferenceSimulator};
 pub use scene::{Scene, Substeps};

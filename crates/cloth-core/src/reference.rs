@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use crate::effects::Effect;
 use crate::error::SimError;
 use crate::forces::{air_drag_force, contact_force, friction_force, gravity_force, integrate, spring_force};
+use crate::integrator::Integrator;
 use crate::model::ClothModel;
 use crate::real::{Real, Vec3};
 use crate::scene::Scene;
@@ -138,8 +139,93 @@ impl<R: Real> ReferenceSimulator<R> {
         &self.velocities
     }
 
-    /// Advances one substep of `Δt = scene.substep_dt()`.
+    /// Advances one substep of `Δt = scene.substep_dt()` with the scene's integrator.
     pub fn substep(&mut self) {
+        match self.scene.integrator {
+            Integrator::SemiImplicitEuler => self.euler_substep(),
+            Integrator::VelocityVerlet => self.verlet_substep(),
+            Integrator::RungeKutta4 => self.rk4_substep(),
+        }
+        let depth = self.deepest_penetration();
+        if depth > self.max_penetration {
+            self.max_penetration = depth;
+        }
+        self.substeps_run += 1;
+        self.time_s += self.scene.substep_dt();
+    }
+
+    /// Forces on every vertex for the state `(x, v)` (zero on pinned vertices); `friction_dt` is
+    /// the step the friction's stopping term refers to.
+    fn forces(&self, x: &[Vec3<R>], v: &[Vec3<R>], friction_dt: R) -> Vec<Vec3<R>> {
+        let ctx = StepContext {
+            params: &self.params,
+            effects: self.scene.effects,
+            first: &self.first,
+            ends: &self.ends,
+            x,
+            v,
+        };
+        let pinned = &self.pinned;
+        (0..x.len())
+            .into_par_iter()
+            .with_min_len(PARALLEL_CHUNK)
+            .map(|i| if pinned[i] { Vec3::zero() } else { ctx.vertex_force(i, friction_dt) })
+            .collect()
+    }
+
+    /// `x + s·d` on free vertices (pinned ones keep `x`).
+    fn offset(&self, x: &[Vec3<R>], d: &[Vec3<R>], s: R) -> Vec<Vec3<R>> {
+        x.iter().zip(d).zip(&self.pinned).map(|((x, d), &p)| if p { *x } else { *x + *d * s }).collect()
+    }
+
+    /// Velocity Verlet: `v½ = v + ½Δt a(x, v)`, `x' = x + Δt v½`, `v' = v½ + ½Δt a(x', v½)`.
+    fn verlet_substep(&mut self) {
+        let p = &self.params;
+        let (h, half) = (p.dt, p.dt * R::of(0.5));
+        let inv_m = R::one() / p.mass;
+        let f1 = self.forces(&self.positions, &self.velocities, half);
+        let v_half = self.offset(&self.velocities, &f1, half * inv_m);
+        let x_new = self.offset(&self.positions, &v_half, h);
+        let f2 = self.forces(&x_new, &v_half, half);
+        let v_new = self.offset(&v_half, &f2, half * inv_m);
+        self.positions = x_new;
+        self.velocities = v_new.into_iter().zip(&self.pinned).map(|(v, &p)| if p { Vec3::zero() } else { v }).collect();
+    }
+
+    /// Classical fourth-order Runge–Kutta on `(x, v)` with `x' = v`, `v' = F(x, v)/m`.
+    fn rk4_substep(&mut self) {
+        let p = &self.params;
+        let (h, half, sixth) = (p.dt, p.dt * R::of(0.5), p.dt / R::of(6.0));
+        let inv_m = R::one() / p.mass;
+        let (x, v) = (&self.positions, &self.velocities);
+        let accel = |f: Vec<Vec3<R>>| -> Vec<Vec3<R>> { f.into_iter().map(|f| f * inv_m).collect() };
+        // Stage k: position derivative = the stage's velocity, velocity derivative = a(stage).
+        let a1 = accel(self.forces(x, v, h));
+        let (x2, v2) = (self.offset(x, v, half), self.offset(v, &a1, half));
+        let a2 = accel(self.forces(&x2, &v2, h));
+        let (x3, v3) = (self.offset(x, &v2, half), self.offset(v, &a2, half));
+        let a3 = accel(self.forces(&x3, &v3, h));
+        let (x4, v4) = (self.offset(x, &v3, h), self.offset(v, &a3, h));
+        let a4 = accel(self.forces(&x4, &v4, h));
+        let two = R::of(2.0);
+        let n = x.len();
+        let mut x_new = Vec::with_capacity(n);
+        let mut v_new = Vec::with_capacity(n);
+        for i in 0..n {
+            if self.pinned[i] {
+                x_new.push(x[i]);
+                v_new.push(Vec3::zero());
+            } else {
+                x_new.push(x[i] + (v[i] + v2[i] * two + v3[i] * two + v4[i]) * sixth);
+                v_new.push(v[i] + (a1[i] + a2[i] * two + a3[i] * two + a4[i]) * sixth);
+            }
+        }
+        self.positions = x_new;
+        self.velocities = v_new;
+    }
+
+    /// The brief's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).
+    fn euler_substep(&mut self) {
         let (x, v) = (&self.positions, &self.velocities);
         let ctx = StepContext {
             params: &self.params,
@@ -160,12 +246,6 @@ impl<R: Real> ReferenceSimulator<R> {
             });
         std::mem::swap(&mut self.positions, &mut self.next_positions);
         std::mem::swap(&mut self.velocities, &mut self.next_velocities);
-        let depth = self.deepest_penetration();
-        if depth > self.max_penetration {
-            self.max_penetration = depth;
-        }
-        self.substeps_run += 1;
-        self.time_s += self.scene.substep_dt();
     }
 
     /// Deepest penetration of any vertex into any sphere right now, m (0 when none).
@@ -193,8 +273,17 @@ struct StepContext<'a, R: Real> {
 }
 
 impl<R: Real> StepContext<'_, R> {
-    /// New position and velocity of free vertex `i`: sum the forces, then integrate.
+    /// New position and velocity of free vertex `i` under semi-implicit Euler: sum the forces,
+    /// then integrate.
     fn vertex_update(&self, i: usize) -> (Vec3<R>, Vec3<R>) {
+        let p = self.params;
+        integrate(self.x[i], self.v[i], self.vertex_force(i, p.dt), p.mass, p.dt)
+    }
+
+    /// The resultant force on free vertex `i`, N: gravity, springs, drag, then contact and
+    /// friction (computed from the others). `friction_dt` is the step the friction's stopping
+    /// term refers to.
+    fn vertex_force(&self, i: usize, friction_dt: R) -> Vec3<R> {
         let p = self.params;
         let (x, v) = (self.x[i], self.v[i]);
         let mut force = Vec3::zero();
@@ -216,11 +305,11 @@ impl<R: Real> StepContext<'_, R> {
             if let Some(contact) = contact_force(x, v, s.center, s.radius, s.stiffness, s.damping) {
                 force += contact.force;
                 if self.effects.contains(Effect::Friction) {
-                    force += friction_force(other_forces, v, contact.normal, p.mass, p.dt, s.friction);
+                    force += friction_force(other_forces, v, contact.normal, p.mass, friction_dt, s.friction);
                 }
             }
         }
-        integrate(x, v, force, p.mass, p.dt)
+        force
     }
 }
 

@@ -40,6 +40,9 @@ pub struct Scene {
     pub air_drag: f64,
     /// Time stepping: frame length, substeps per frame, run length.
     pub time: TimeSpec,
+    /// Time integrator. Default `SemiImplicitEuler` (the brief's; the GPU backends run only it
+    /// so far).
+    pub integrator: crate::integrator::Integrator,
     /// The effects this scene simulates. Default: the brief's (everything but air drag).
     pub effects: EffectSet,
 }
@@ -55,6 +58,7 @@ impl Default for Scene {
             gravity: [0.0, -9.81, 0.0],
             air_drag: 0.5,
             time: TimeSpec::default(),
+            integrator: crate::integrator::Integrator::default(),
             effects: EffectSet::default(),
         }
     }

@@ -132,6 +132,8 @@ impl Scene {
             Some("the set of effects".into())
         } else if self.spheres.len() != new.spheres.len() {
             Some("the number of spheres".into())
+        } else if self.integrator != new.integrator {
+            Some("the integrator".into())
         } else {
             None
         }

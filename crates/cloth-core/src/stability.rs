@@ -18,11 +18,15 @@ use crate::effects::Effect;
 use crate::scene::{Auto, Scene};
 use crate::springs::SpringKind;
 
-/// Largest stable substep `h_max`, s, for the scene's springs, masses and damping
+/// Largest stable substep `h_max`, s, for the scene's springs, masses, damping and integrator
 /// (`f64::INFINITY` when nothing in the scene limits the step).
+///
+/// Semi-implicit Euler and velocity Verlet share the bound below. For RK4 the undamped limit
+/// `2√2/ω` replaces `2/ω`: the damped bound is scaled by `√2` (an estimate; RK4's stability
+/// region is not the symplectic methods' shape).
 pub fn stable_substep(scene: &Scene) -> f64 {
     let (omega_sq, damping_rate) = stiffness_and_damping_rates(scene);
-    bound(omega_sq, damping_rate)
+    bound(omega_sq, damping_rate) * scene.integrator.stability_limit() / 2.0
 }
 
 /// `h_max` for the oscillator `x'' = -ω² x - c x'` under semi-implicit Euler.

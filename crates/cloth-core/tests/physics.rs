@@ -217,3 +217,19 @@ fn live_parameter_updates_apply_and_structural_changes_are_refused() {
     let err = sim.update_parameters(&regrid).unwrap_err();
     assert!(err.to_string().contains("grid resolution"), "{err}");
 }
+
+#[test]
+fn every_integrator_drapes_without_nan_or_deep_penetration() {
+    for integrator in cloth_core::Integrator::ALL {
+        let mut scene = load("drape.ron");
+        scene.cloth.resolution = [16, 16];
+        scene.integrator = integrator;
+        let mut sim = CpuSimulator::new(&scene).unwrap();
+        sim.advance(120).unwrap();
+        let state = sim.read_state().unwrap();
+        assert_eq!(state.non_finite_count(), 0, "{integrator:?}");
+        let depth = sim.diagnostics().unwrap().max_penetration_m;
+        assert!(depth < 0.02 * scene.spheres[0].radius, "{integrator:?}: penetration {depth} m");
+        assert!(state.centroid()[1] > scene.spheres[0].center[1], "{integrator:?}: rests on the sphere");
+    }
+}

@@ -77,6 +77,7 @@ impl VulkanoSimulator {
     /// the GPU objects fails.
     pub fn on_context(scene: &Scene, context: VulkanContext) -> Result<Self, SimError> {
         scene.validate()?;
+        SimError::require_euler(BACKEND_NAME, scene)?;
         let device = context.device.clone();
         let properties = device.physical_device().properties();
         let limit = properties.max_storage_buffer_range as u64;

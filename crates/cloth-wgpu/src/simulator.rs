@@ -58,6 +58,7 @@ impl WgpuSimulator {
     /// device's limits, [`SimError::Device`] when creating the GPU objects fails.
     pub fn on_device(scene: &Scene, context: GpuContext) -> Result<Self, SimError> {
         scene.validate()?;
+        SimError::require_euler(BACKEND_NAME, scene)?;
         check_limits(scene, &context.device.limits())?;
         let model = ClothModel::new(scene);
         let data = GpuBuffers::new(&model);
