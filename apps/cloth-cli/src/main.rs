@@ -8,6 +8,7 @@
 mod bench;
 mod render;
 mod report;
+mod study;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -45,6 +46,15 @@ enum Command {
     Backends,
     /// Measure ms per frame and vertex-substeps per second of each backend (prints a table).
     Bench(bench::BenchArgs),
+    /// Studies (`cloth study accuracy`).
+    #[command(subcommand)]
+    Study(StudyCommand),
+}
+
+#[derive(Subcommand)]
+enum StudyCommand {
+    /// What accuracy costs in time: integrator × substeps against an f64 RK4 reference.
+    Accuracy(study::AccuracyArgs),
 }
 
 #[derive(clap::Args)]
@@ -75,7 +85,7 @@ struct RunArgs {
     png: Option<PathBuf>,
 }
 
-fn parse_grid(text: &str) -> Result<[u32; 2], String> {
+pub(crate) fn parse_grid(text: &str) -> Result<[u32; 2], String> {
     let (a, b) = text.split_once(['x', 'X']).ok_or_else(|| format!("'{text}' is not NXxNY (e.g. 64x48)"))?;
     let n =
         |s: &str| s.trim().parse::<u32>().map_err(|e| format!("'{s}' in '{text}': {e} (expected NXxNY, e.g. 64x48)"));
@@ -112,6 +122,7 @@ fn main() -> Result<()> {
         Command::Run(args) => run(args),
         Command::Check { scene, grid, substeps } => check(&scene, grid, substeps),
         Command::Bench(args) => bench::run(args),
+        Command::Study(StudyCommand::Accuracy(args)) => study::accuracy(args),
         Command::Backends => {
             for b in backends::all() {
                 println!("{:<8} {}", b.name, b.description);

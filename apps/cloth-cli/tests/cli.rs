@@ -110,3 +110,34 @@ fn run_on_gpu(backend: &str) {
     assert_eq!(v["submissions_per_frame"], 1.0);
     assert_eq!(v["host_waits_per_frame"], 0.0);
 }
+
+#[test]
+fn study_accuracy_writes_a_csv_where_higher_order_is_more_accurate() {
+    let csv = std::env::temp_dir().join(format!("cloth-accuracy-{}.csv", std::process::id()));
+    let out = cloth(&[
+        "study",
+        "accuracy",
+        "--grid",
+        "6x6",
+        "--duration",
+        "0.1",
+        "--substeps",
+        "16,32",
+        "--backends",
+        "cpu-f64",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 3 * 2, "3 integrators x 2 substep counts");
+    let error = |method: &str, n: &str| -> f64 {
+        rows.iter().find(|r| r[1] == method && r[2] == n).unwrap()[5].parse().unwrap()
+    };
+    for n in ["16", "32"] {
+        assert!(error("rk4", n) < error("verlet", n) && error("verlet", n) < error("euler", n), "{text}");
+    }
+    assert!(String::from_utf8_lossy(&out.stdout).contains("largest stable substep"));
+    let _ = std::fs::remove_file(csv);
+}
