@@ -198,10 +198,14 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         }
     }
 
-    println!("\nlargest stable substep (bisection, 2000 substeps from rest, CPU f64) against the predicted bound:");
+    println!(
+        "\nlargest stable substep (bisection, 2000 substeps from rest, CPU f64) against the predictions: \
+         the spectral estimate (power iteration on M⁻¹K) and the safe Gershgorin bound:"
+    );
     for integrator in Integrator::ALL {
         let mut scene = with(integrator, 1);
-        let predicted = stability::stable_substep(&scene);
+        let predicted = stability::spectral_stable_substep(&ClothModel::new(&scene));
+        let safe = stability::stable_substep(&scene);
         let mut stable = |h: f64| {
             scene.time.frame_dt = h;
             let Ok(mut sim) = CpuSimulatorF64::new(&scene) else { return false };
@@ -224,9 +228,10 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
             }
         }
         println!(
-            "  {:<7} predicted {predicted:.3e} s, measured {lo:.3e} s (ratio {:.2})",
+            "  {:<7} spectral {predicted:.3e} s, measured {lo:.3e} s (ratio {:.2}); safe bound {safe:.3e} s (ratio {:.2})",
             integrator.name(),
-            lo / predicted
+            lo / predicted,
+            lo / safe
         );
     }
 
@@ -256,5 +261,95 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         )?;
     }
     println!("wrote {}", args.csv.display());
+    let svg = args.csv.with_extension("svg");
+    plot(&rows, &svg)?;
+    println!("wrote {}", svg.display());
+    Ok(())
+}
+
+/// Indices of the rows on the Pareto front: no other finite row is both cheaper and more
+/// accurate.
+fn pareto_front(rows: &[Row]) -> Vec<usize> {
+    let ok = |r: &Row| r.finite && r.rms_error_m.is_finite() && r.rms_error_m > 0.0;
+    (0..rows.len())
+        .filter(|&i| {
+            ok(&rows[i])
+                && !rows.iter().any(|o| {
+                    ok(o)
+                        && o.ms_per_simulated_s <= rows[i].ms_per_simulated_s
+                        && o.rms_error_m <= rows[i].rms_error_m
+                        && (o.ms_per_simulated_s < rows[i].ms_per_simulated_s || o.rms_error_m < rows[i].rms_error_m)
+                })
+        })
+        .collect()
+}
+
+/// Error against cost, log–log, one curve per backend and integrator, the Pareto front circled.
+fn plot(rows: &[Row], path: &std::path::Path) -> Result<()> {
+    use plotters::prelude::*;
+    let finite: Vec<&Row> =
+        rows.iter().filter(|r| r.finite && r.rms_error_m.is_finite() && r.rms_error_m > 0.0).collect();
+    if finite.is_empty() {
+        return Ok(());
+    }
+    let (x0, x1) = finite
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.ms_per_simulated_s), b.max(r.ms_per_simulated_s)));
+    let (y0, y1) = finite.iter().fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.rms_error_m), b.max(r.rms_error_m)));
+    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Error against cost (RMS position error vs an f64 RK4 reference)", ("sans-serif", 20))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d((x0 * 0.8..x1 * 1.25).log_scale(), (y0 * 0.5..y1 * 2.0).log_scale())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .bold_line_style(RGBColor(200, 200, 200))
+        .light_line_style(RGBColor(240, 240, 240))
+        .x_desc("wall ms per simulated second")
+        .y_desc("RMS position error (m)")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let palette = [RED, BLUE, RGBColor(0, 150, 0), RGBColor(255, 140, 0), RGBColor(0, 170, 200), RGBColor(90, 0, 160)];
+    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for r in &finite {
+        let key = format!("{} {}", r.backend, r.integrator.name());
+        match series.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, points)) => points.push((r.ms_per_simulated_s, r.rms_error_m)),
+            None => series.push((key, vec![(r.ms_per_simulated_s, r.rms_error_m)])),
+        }
+    }
+    for (k, (name, points)) in series.iter().enumerate() {
+        let color = palette[k % palette.len()];
+        chart
+            .draw_series(LineSeries::new(points.iter().copied(), color.stroke_width(2)))
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+            .label(name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    chart
+        .draw_series(
+            pareto_front(rows)
+                .into_iter()
+                .map(|i| Circle::new((rows[i].ms_per_simulated_s, rows[i].rms_error_m), 9, BLACK.stroke_width(2))),
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .label("Pareto front")
+        .legend(|(x, y)| Circle::new((x + 10, y), 6, BLACK.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
 }

@@ -99,6 +99,86 @@ pub fn auto_substeps(scene: &Scene) -> u32 {
     if n.is_finite() { n.clamp(1.0, u32::MAX as f64) as u32 } else { 1 }
 }
 
+/// Largest stable substep from the actual fastest mode of the cloth, s: `ω_max² = λ_max(M⁻¹K)`
+/// found by power iteration on the springs' stiffness matrix at the rest shape (pinned vertices
+/// held), plus the contact stiffness, with the damping rate bounded as in [`stable_substep`].
+///
+/// Tighter than [`stable_substep`], which bounds `λ_max` by Gershgorin's theorem and so counts
+/// every spring of a vertex as if all of them could stretch at once; this one is an estimate
+/// (power iteration approaches `λ_max` from below), so validation and `Auto` keep the safe bound.
+pub fn spectral_stable_substep(model: &crate::model::ClothModel) -> f64 {
+    let scene = &model.scene;
+    let m = scene.vertex_mass();
+    let n = model.vertex_count();
+    if n == 0 || m.is_nan() || m <= 0.0 {
+        return f64::INFINITY;
+    }
+    let stiffness = |kind: SpringKind| match kind {
+        SpringKind::Structural => scene.springs.structural.stiffness,
+        SpringKind::Shear => scene.springs.shear.stiffness,
+        SpringKind::Bend => scene.springs.bend.stiffness,
+    };
+    // Unit directions of the springs at rest.
+    let springs: Vec<(usize, usize, f64, [f64; 3])> = model
+        .springs
+        .iter()
+        .filter_map(|s| {
+            let (a, b) = (model.grid.positions[s.a as usize], model.grid.positions[s.b as usize]);
+            let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            (l > 0.0).then(|| (s.a as usize, s.b as usize, stiffness(s.kind), [d[0] / l, d[1] / l, d[2] / l]))
+        })
+        .collect();
+    let pinned = &model.grid.pinned;
+    let apply = |x: &[[f64; 3]], y: &mut [[f64; 3]]| {
+        y.iter_mut().for_each(|v| *v = [0.0; 3]);
+        for &(a, b, k, u) in &springs {
+            let d = [x[a][0] - x[b][0], x[a][1] - x[b][1], x[a][2] - x[b][2]];
+            let f = k * (u[0] * d[0] + u[1] * d[1] + u[2] * d[2]);
+            for c in 0..3 {
+                y[a][c] += f * u[c];
+                y[b][c] -= f * u[c];
+            }
+        }
+        for (i, v) in y.iter_mut().enumerate() {
+            if pinned[i] {
+                *v = [0.0; 3];
+            }
+        }
+    };
+    // A start vector with every mode in it (deterministic, no zero entries on free vertices).
+    let mut x: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            if pinned[i] {
+                return [0.0; 3];
+            }
+            let h = |k: usize| {
+                (((i * 3 + k) as f64 * 0.618_033_988_75).fract() - 0.5) + if (i + k) % 2 == 0 { 1.0 } else { -1.0 }
+            };
+            [h(0), h(1), h(2)]
+        })
+        .collect();
+    let mut y = vec![[0.0; 3]; n];
+    let norm = |v: &[[f64; 3]]| v.iter().flat_map(|p| p.iter()).map(|c| c * c).sum::<f64>().sqrt();
+    let mut lambda = 0.0;
+    for _ in 0..300 {
+        let nx = norm(&x);
+        if nx == 0.0 {
+            break;
+        }
+        x.iter_mut().for_each(|p| p.iter_mut().for_each(|c| *c /= nx));
+        apply(&x, &mut y);
+        lambda = x.iter().zip(&y).map(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).sum::<f64>();
+        std::mem::swap(&mut x, &mut y);
+    }
+    let mut omega_sq = lambda / m;
+    let (_, damping_rate) = stiffness_and_damping_rates(scene);
+    if scene.effects.contains(Effect::SphereContact) {
+        omega_sq += scene.spheres.iter().map(|s| s.stiffness).sum::<f64>() / m;
+    }
+    bound(omega_sq, damping_rate) * scene.integrator.stability_limit() / 2.0
+}
+
 /// `Δt / h_max`: below 1 is stable, above 1 diverges.
 pub fn stability_margin(scene: &Scene) -> f64 {
     scene.substep_dt() / stable_substep(scene)
