@@ -153,7 +153,8 @@ pub fn spectral_stable_substep(model: &crate::model::ClothModel) -> f64 {
                 return [0.0; 3];
             }
             let h = |k: usize| {
-                (((i * 3 + k) as f64 * 0.618_033_988_75).fract() - 0.5) + if (i + k) % 2 == 0 { 1.0 } else { -1.0 }
+                (((i * 3 + k) as f64 * 0.618_033_988_75).fract() - 0.5)
+                    + if (i + k).is_multiple_of(2) { 1.0 } else { -1.0 }
             };
             [h(0), h(1), h(2)]
         })
