@@ -17,6 +17,10 @@ layout(constant_id = 6) const bool EFFECT_FRICTION = true;
 layout(constant_id = 7) const bool EFFECT_AIR_DRAG = false;
 // local_size_x is the default; local_size_x_id makes it specializable (id 8).
 layout(local_size_x = 64, local_size_x_id = 8) in;
+// Which integration stage this pipeline runs: 0 semi-implicit Euler (the brief's); 1 and 2 the
+// two halves of velocity Verlet: 1 = kick and drift (v½ = v + ½Δt F(x, v)/m, x' = x + Δt v½),
+// 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched).
+layout(constant_id = 9) const uint STAGE = 0u;
 
 #include "layout.glsl"
 #include "forces.glsl"
@@ -41,6 +45,9 @@ void main() {
     if (p.w != 0.0) {
         float mass = params.vertex_mass;
         float dt = params.substep_dt;
+        float half_dt = dt * 0.5;
+        // The step the friction's stopping term refers to: what this stage's velocity update spans.
+        float friction_dt = STAGE != 0u ? half_dt : dt;
         vec3 force = vec3(0.0);
         if (EFFECT_GRAVITY) {
             force += gravity_force(mass, params.gravity.xyz);
@@ -71,17 +78,28 @@ void main() {
                 if (contact_force(x, v, spheres[s], normal, contact)) {
                     force += contact;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v, normal, mass, dt, spheres[s].friction);
+                        force += friction_force(other_forces, v, normal, mass, friction_dt, spheres[s].friction);
                     }
                 }
             }
         }
-        // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
-        v_new = v + force * (dt / mass);
-        x_new = x + v_new * dt;
+        if (STAGE == 0u) {
+            // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
+            v_new = v + force * (dt / mass);
+            x_new = x + v_new * dt;
+        } else {
+            // Verlet: a half kick, then (stage 1) a full drift.
+            v_new = v + force * (half_dt / mass);
+            if (STAGE == 1u) {
+                x_new = x + v_new * dt;
+            }
+        }
+    }
+    velocities_out[i] = vec4(v_new, 0.0);
+    if (STAGE == 2u) {
+        return; // the second kick leaves the positions of the first stage as they are
     }
     positions_out[i] = vec4(x_new, p.w);
-    velocities_out[i] = vec4(v_new, 0.0);
     if (EFFECT_CONTACT) {
         float deepest = 0.0;
         for (uint s = 0u; s < params.sphere_count; s++) {

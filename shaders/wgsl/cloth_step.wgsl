@@ -17,6 +17,10 @@ override EFFECT_CONTACT: bool = true;
 override EFFECT_FRICTION: bool = true;
 override EFFECT_AIR_DRAG: bool = false;
 override WORKGROUP_SIZE: u32 = 64u;
+// Which integration stage this pipeline runs: 0 semi-implicit Euler (the brief's); 1 and 2 the
+// two halves of velocity Verlet: 1 = kick and drift (v½ = v + ½Δt F(x, v)/m, x' = x + Δt v½),
+// 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched).
+override STAGE: u32 = 0u;
 
 // cloth_core::layout::GpuSimParams (80 bytes).
 struct SimParams {
@@ -157,6 +161,12 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if (p.w != 0.0) {
         let mass = params.vertex_mass;
         let dt = params.substep_dt;
+        let half = dt * 0.5;
+        // The step the friction's stopping term refers to: what this stage's velocity update spans.
+        var friction_dt = dt;
+        if (STAGE != 0u) {
+            friction_dt = half;
+        }
         var force = vec3<f32>(0.0);
         if (EFFECT_GRAVITY) {
             force += gravity_force(mass, params.gravity.xyz);
@@ -186,17 +196,28 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
                 if (c.hit) {
                     force += c.force;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v, c.normal, mass, dt, spheres[s].friction);
+                        force += friction_force(other_forces, v, c.normal, mass, friction_dt, spheres[s].friction);
                     }
                 }
             }
         }
-        // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
-        v_new = v + force * (dt / mass);
-        x_new = x + v_new * dt;
+        if (STAGE == 0u) {
+            // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
+            v_new = v + force * (dt / mass);
+            x_new = x + v_new * dt;
+        } else {
+            // Verlet: a half kick, then (stage 1) a full drift.
+            v_new = v + force * (half / mass);
+            if (STAGE == 1u) {
+                x_new = x + v_new * dt;
+            }
+        }
+    }
+    velocities_out[i] = vec4<f32>(v_new, 0.0);
+    if (STAGE == 2u) {
+        return; // the second kick leaves the positions of the first stage as they are
     }
     positions_out[i] = vec4<f32>(x_new, p.w);
-    velocities_out[i] = vec4<f32>(v_new, 0.0);
     if (EFFECT_CONTACT) {
         var deepest = 0.0;
         for (var s = 0u; s < params.sphere_count; s++) {

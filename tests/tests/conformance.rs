@@ -94,6 +94,35 @@ fn short_horizon_matches_the_references(backend: &Backend) {
     }
 }
 
+/// Velocity Verlet (two dispatches per substep on the GPU) against the f32 CPU reference's
+/// Verlet, with the short-horizon tolerance derived above.
+fn verlet_matches_the_reference_on_a_short_horizon(backend: &Backend) {
+    for (name, mut scene, frames) in [
+        ("drape 7x13", with_grid(scene("drape.ron"), [7, 13]), 12),
+        ("hanging 13x5 pinned", with_grid(scene("hanging.ron"), [13, 5]), 30),
+    ] {
+        scene.integrator = cloth_core::Integrator::VelocityVerlet;
+        let Some((state, _)) = run(backend, &scene, frames) else { return };
+        let d = max_difference(&state, &reference_f32(&scene, frames));
+        assert_eq!(state.non_finite_count(), 0, "{name}");
+        assert!(d <= F32_TOLERANCE_M, "{name}: Verlet differs from the f32 reference by {d} m");
+        assert!(
+            max_difference(
+                &state,
+                &reference_f32(
+                    &{
+                        let mut e = scene.clone();
+                        e.integrator = cloth_core::Integrator::SemiImplicitEuler;
+                        e
+                    },
+                    frames
+                )
+            ) > 0.0,
+            "{name}: Verlet must not be Euler"
+        );
+    }
+}
+
 fn bit_exact_with_the_f32_reference(backend: &Backend) {
     let scene = with_grid(scene("drape.ron"), [7, 13]);
     let Some((state, _)) = run(backend, &scene, 12) else { return };
@@ -402,6 +431,7 @@ conformance! {
     ],
     cases: [
         short_horizon_matches_the_references,
+        verlet_matches_the_reference_on_a_short_horizon,
         bit_exact_with_the_f32_reference,
         long_horizon_outcomes_agree,
         changing_the_grid_changes_the_vertex_count,
@@ -426,15 +456,15 @@ fn wgpu_and_vulkano_agree() {
     }
 }
 
-/// The GPU kernels run the brief's semi-implicit Euler only (so far): asking for another
+/// The GPU kernels run semi-implicit Euler and velocity Verlet (so far): asking for another
 /// integrator is refused by name, never silently run with the wrong one.
 #[test]
 fn gpu_backends_refuse_integrators_they_do_not_run() {
     let mut scene = with_grid(scene("drape.ron"), [8, 8]);
-    scene.integrator = cloth_core::Integrator::VelocityVerlet;
+    scene.integrator = cloth_core::Integrator::RungeKutta4;
     for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
         match (backend.create)(&scene) {
-            Err(cloth_core::SimError::Unsupported { what, .. }) => assert!(what.contains("VelocityVerlet"), "{what}"),
+            Err(cloth_core::SimError::Unsupported { what, .. }) => assert!(what.contains("RungeKutta4"), "{what}"),
             Err(cloth_core::SimError::Unavailable { reason, .. }) if std::env::var_os("CI").is_none() => {
                 eprintln!("SKIPPED on backend {}: {reason}", backend.name)
             }

@@ -295,10 +295,14 @@ impl InspectorApp {
                 self.runtime.stats.clear();
             }
             Err(e) => {
+                let (field, fix) = match e {
+                    SimError::Unsupported { .. } => ("integrator", "choose another integrator, or the cpu backend"),
+                    _ => ("cloth.resolution", "use a smaller grid, or another backend"),
+                };
                 let problem = Problem {
-                    field: "cloth.resolution".into(),
+                    field: field.into(),
                     message: format!("the {name} backend cannot run this scene: {e}"),
-                    fix: "use a smaller grid, or another backend".into(),
+                    fix: fix.into(),
                 };
                 self.runtime.problems = vec![problem.clone()];
                 self.runtime.rejected = Some((self.state.scene.clone(), problem));

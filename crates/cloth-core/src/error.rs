@@ -51,19 +51,20 @@ fn list(problems: &[Problem]) -> String {
 }
 
 impl SimError {
-    /// Refuses any integrator but the brief's semi-implicit Euler (what the GPU kernels run).
+    /// Refuses the integrators the GPU kernels do not run (they run semi-implicit Euler and
+    /// velocity Verlet).
     ///
     /// # Errors
     /// [`SimError::Unsupported`] naming the integrator and the alternatives.
-    pub fn require_euler(backend: &'static str, scene: &crate::Scene) -> Result<(), SimError> {
-        if scene.integrator == crate::Integrator::SemiImplicitEuler {
-            return Ok(());
+    pub fn require_gpu_integrator(backend: &'static str, scene: &crate::Scene) -> Result<(), SimError> {
+        match scene.integrator {
+            crate::Integrator::SemiImplicitEuler | crate::Integrator::VelocityVerlet => Ok(()),
+            other => Err(SimError::Unsupported {
+                backend,
+                what: format!("the {other:?} integrator"),
+                fix: "use the cpu backend, or integrator: SemiImplicitEuler or VelocityVerlet".into(),
+            }),
         }
-        Err(SimError::Unsupported {
-            backend,
-            what: format!("the {:?} integrator", scene.integrator),
-            fix: "use the cpu backend, or integrator: SemiImplicitEuler".into(),
-        })
     }
 }
 

@@ -1,13 +1,15 @@
 //! Time integrators: how a substep turns forces into new velocities and positions.
 //!
 //! * [`Integrator::SemiImplicitEuler`], the brief's: `v += Δt F(x, v)/m; x += Δt v`. First order,
-//!   symplectic, stable for `Δt < 2/ω` (less with damping). The only one the GPU backends run yet.
+//!   symplectic, stable for `Δt < 2/ω` (less with damping).
 //! * [`Integrator::VelocityVerlet`]: kick–drift–kick, `v½ = v + ½Δt a(x, v)`, `x' = x + Δt v½`,
 //!   `v' = v½ + ½Δt a(x', v½)`. Second order for conservative forces, symplectic, same stability
 //!   limit `2/ω`; velocity-dependent forces (damping, friction, drag) are evaluated with the
-//!   velocity at hand, which keeps second order for them only approximately.
+//!   velocity at hand, which keeps second order for them only approximately. The GPU backends run
+//!   it as two dispatches per substep (the shaders' `STAGE` constant: kick and drift, then kick).
 //! * [`Integrator::RungeKutta4`]: the classical four-stage method on `(x, v)`. Fourth order, not
 //!   symplectic (it slowly dissipates energy), stable for `Δt < 2√2/ω` on an undamped spring.
+//!   CPU reference only; the GPU backends refuse it with [`crate::SimError::Unsupported`].
 //!
 //! Contact and friction keep the brief's meaning under every integrator: they are forces of the
 //! state each stage evaluates. The friction's "stop within this step" term uses the step its

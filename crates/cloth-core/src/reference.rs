@@ -181,13 +181,14 @@ impl<R: Real> ReferenceSimulator<R> {
     /// Velocity Verlet: `v½ = v + ½Δt a(x, v)`, `x' = x + Δt v½`, `v' = v½ + ½Δt a(x', v½)`.
     fn verlet_substep(&mut self) {
         let p = &self.params;
+        // The same operations, in the same order, as the GPU kernels' Verlet stages.
         let (h, half) = (p.dt, p.dt * R::of(0.5));
-        let inv_m = R::one() / p.mass;
+        let kick = half / p.mass;
         let f1 = self.forces(&self.positions, &self.velocities, half);
-        let v_half = self.offset(&self.velocities, &f1, half * inv_m);
+        let v_half = self.offset(&self.velocities, &f1, kick);
         let x_new = self.offset(&self.positions, &v_half, h);
         let f2 = self.forces(&x_new, &v_half, half);
-        let v_new = self.offset(&v_half, &f2, half * inv_m);
+        let v_new = self.offset(&v_half, &f2, kick);
         self.positions = x_new;
         self.velocities = v_new.into_iter().zip(&self.pinned).map(|(v, &p)| if p { Vec3::zero() } else { v }).collect();
     }

@@ -40,8 +40,8 @@ pub struct Scene {
     pub air_drag: f64,
     /// Time stepping: frame length, substeps per frame, run length.
     pub time: TimeSpec,
-    /// Time integrator. Default `SemiImplicitEuler` (the brief's; the GPU backends run only it
-    /// so far).
+    /// Time integrator. Default `SemiImplicitEuler` (the brief's). The GPU backends run it and
+    /// `VelocityVerlet`; `RungeKutta4` runs on the CPU backends.
     pub integrator: crate::integrator::Integrator,
     /// The effects this scene simulates. Default: the brief's (everything but air drag).
     pub effects: EffectSet,

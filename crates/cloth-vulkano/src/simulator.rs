@@ -26,6 +26,14 @@ pub const WORKGROUP_SIZE: u32 = 64;
 /// Specialization-constant id of the workgroup size; ids `0..8` are the effects, in
 /// `cloth_core::Effect::ALL` order.
 pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 8;
+/// Specialization-constant id of the integration stage (0 Euler, 1 and 2 the Verlet halves).
+pub const STAGE_CONSTANT_ID: u32 = 9;
+
+/// One dispatch of a substep: its pipeline and, for each current state buffer `k`, its set.
+struct Stage {
+    pipeline: Arc<ComputePipeline>,
+    sets: [Arc<DescriptorSet>; 2],
+}
 
 type State = Subbuffer<[[f32; 4]]>;
 
@@ -33,9 +41,9 @@ type State = Subbuffer<[[f32; 4]]>;
 pub struct VulkanoSimulator {
     context: VulkanContext,
     scene: Scene,
-    pipeline: Arc<ComputePipeline>,
-    /// `sets[k]` reads state buffer `k` and writes state buffer `1 - k`.
-    sets: [Arc<DescriptorSet>; 2],
+    /// The dispatches of one substep (one for Euler, two for Verlet); a substep leaves the new
+    /// state in buffer `1 - k` when `k` is current.
+    stages: Vec<Stage>,
     params: Subbuffer<GpuSimParams>,
     spheres: Subbuffer<[GpuSphere]>,
     positions: [State; 2],
@@ -77,7 +85,7 @@ impl VulkanoSimulator {
     /// the GPU objects fails.
     pub fn on_context(scene: &Scene, context: VulkanContext) -> Result<Self, SimError> {
         scene.validate()?;
-        SimError::require_euler(BACKEND_NAME, scene)?;
+        SimError::require_gpu_integrator(BACKEND_NAME, scene)?;
         let device = context.device.clone();
         let properties = device.physical_device().properties();
         let limit = properties.max_storage_buffer_range as u64;
@@ -102,30 +110,34 @@ impl VulkanoSimulator {
         // SAFETY: the SPIR-V comes from glslc, which emits valid modules for Vulkan 1.1.
         let module = unsafe { ShaderModule::new(device.clone(), ShaderModuleCreateInfo::new(&words)) }
             .map_err(|e| device_error(format!("loading the SPIR-V: {e}")))?;
-        let constants = scene
-            .effects
-            .shader_constants()
-            .into_iter()
-            .enumerate()
-            .map(|(id, (_, on))| (id as u32, SpecializationConstant::Bool(on)))
-            .chain([(WORKGROUP_SIZE_CONSTANT_ID, SpecializationConstant::U32(WORKGROUP_SIZE))])
-            .collect();
-        let entry = module
-            .specialize(constants)
-            .map_err(|e| device_error(format!("specializing the shader: {e}")))?
-            .entry_point("main")
-            .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
-        let stage = PipelineShaderStageCreateInfo::new(entry);
-        let layout = PipelineLayout::new(
-            device.clone(),
-            PipelineDescriptorSetLayoutCreateInfo::from_stages([&stage])
-                .into_pipeline_layout_create_info(device.clone())
-                .map_err(|e| device_error(format!("pipeline layout: {e:?}")))?,
-        )
-        .map_err(|e| device_error(format!("pipeline layout: {e}")))?;
-        let pipeline =
+        let pipeline = |stage: u32| -> Result<Arc<ComputePipeline>, SimError> {
+            let constants = scene
+                .effects
+                .shader_constants()
+                .into_iter()
+                .enumerate()
+                .map(|(id, (_, on))| (id as u32, SpecializationConstant::Bool(on)))
+                .chain([
+                    (WORKGROUP_SIZE_CONSTANT_ID, SpecializationConstant::U32(WORKGROUP_SIZE)),
+                    (STAGE_CONSTANT_ID, SpecializationConstant::U32(stage)),
+                ])
+                .collect();
+            let entry = module
+                .specialize(constants)
+                .map_err(|e| device_error(format!("specializing the shader: {e}")))?
+                .entry_point("main")
+                .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
+            let stage = PipelineShaderStageCreateInfo::new(entry);
+            let layout = PipelineLayout::new(
+                device.clone(),
+                PipelineDescriptorSetLayoutCreateInfo::from_stages([&stage])
+                    .into_pipeline_layout_create_info(device.clone())
+                    .map_err(|e| device_error(format!("pipeline layout: {e:?}")))?,
+            )
+            .map_err(|e| device_error(format!("pipeline layout: {e}")))?;
             ComputePipeline::new(device.clone(), None, ComputePipelineCreateInfo::stage_layout(stage, layout))
-                .map_err(|e| device_error(format!("compute pipeline: {e}")))?;
+                .map_err(|e| device_error(format!("compute pipeline: {e}")))
+        };
 
         let storage = BufferUsage::STORAGE_BUFFER | BufferUsage::TRANSFER_DST | BufferUsage::TRANSFER_SRC;
         let device_local = |usage: BufferUsage, bytes: u64| -> Result<Subbuffer<[u8]>, SimError> {
@@ -150,28 +162,58 @@ impl VulkanoSimulator {
             [device_local(storage, state_bytes)?.reinterpret(), device_local(storage, state_bytes)?.reinterpret()];
         let max_penetration: Subbuffer<[u32]> = device_local(storage, 4)?.reinterpret();
 
-        let set_layout = pipeline.layout().set_layouts()[0].clone();
-        let set = |from: usize| {
-            let to = 1 - from;
+        let verlet = scene.integrator == cloth_core::Integrator::VelocityVerlet;
+        let set = |pipeline: &Arc<ComputePipeline>, [x_in, v_in, x_out, v_out]: [&State; 4]| {
             DescriptorSet::new(
                 descriptors.clone(),
-                set_layout.clone(),
+                pipeline.layout().set_layouts()[0].clone(),
                 [
                     WriteDescriptorSet::buffer(0, params.clone()),
                     WriteDescriptorSet::buffer(1, spheres.clone()),
                     WriteDescriptorSet::buffer(2, ranges.clone()),
                     WriteDescriptorSet::buffer(3, ends.clone()),
-                    WriteDescriptorSet::buffer(4, positions[from].clone()),
-                    WriteDescriptorSet::buffer(5, velocities[from].clone()),
-                    WriteDescriptorSet::buffer(6, positions[to].clone()),
-                    WriteDescriptorSet::buffer(7, velocities[to].clone()),
+                    WriteDescriptorSet::buffer(4, x_in.clone()),
+                    WriteDescriptorSet::buffer(5, v_in.clone()),
+                    WriteDescriptorSet::buffer(6, x_out.clone()),
+                    WriteDescriptorSet::buffer(7, v_out.clone()),
                     WriteDescriptorSet::buffer(8, max_penetration.clone()),
                 ],
                 [],
             )
             .map_err(|e| device_error(format!("descriptor set: {e}")))
         };
-        let sets = [set(0)?, set(1)?];
+        let mut stages = Vec::new();
+        if verlet {
+            // Verlet's half-step velocities, and a sink for the positions its second kick does not
+            // write.
+            let v_half: State = device_local(storage, state_bytes)?.reinterpret();
+            let sink: State = device_local(storage, 16)?.reinterpret();
+            let first = pipeline(1)?;
+            let second = pipeline(2)?;
+            stages.push(Stage {
+                sets: [
+                    set(&first, [&positions[0], &velocities[0], &positions[1], &v_half])?,
+                    set(&first, [&positions[1], &velocities[1], &positions[0], &v_half])?,
+                ],
+                pipeline: first,
+            });
+            stages.push(Stage {
+                sets: [
+                    set(&second, [&positions[1], &v_half, &sink, &velocities[1]])?,
+                    set(&second, [&positions[0], &v_half, &sink, &velocities[0]])?,
+                ],
+                pipeline: second,
+            });
+        } else {
+            let euler = pipeline(0)?;
+            stages.push(Stage {
+                sets: [
+                    set(&euler, [&positions[0], &velocities[0], &positions[1], &velocities[1]])?,
+                    set(&euler, [&positions[1], &velocities[1], &positions[0], &velocities[0]])?,
+                ],
+                pipeline: euler,
+            });
+        }
 
         let groups = (data.positions.len() as u32).div_ceil(WORKGROUP_SIZE);
         let max_x = properties.max_compute_work_group_count[0].max(1);
@@ -179,8 +221,7 @@ impl VulkanoSimulator {
         let mut sim = Self {
             free: data.positions.iter().map(|p| p[3]).collect(),
             scene: scene.clone(),
-            pipeline,
-            sets,
+            stages,
             params,
             spheres,
             positions,
@@ -357,19 +398,23 @@ impl Simulator for VulkanoSimulator {
                     .map_err(|e| device_error(format!("spheres: {e}")))?;
             }
         }
-        builder.bind_pipeline_compute(self.pipeline.clone()).map_err(|e| device_error(format!("binding: {e}")))?;
         for _ in 0..substeps {
-            builder
-                .bind_descriptor_sets(
-                    PipelineBindPoint::Compute,
-                    self.pipeline.layout().clone(),
-                    0,
-                    self.sets[self.current].clone(),
-                )
-                .map_err(|e| device_error(format!("binding: {e}")))?;
-            // SAFETY: the shader bounds-checks its invocation index against params.vertex_count,
-            // and every buffer it indexes holds vertex_count (or its spring-range) elements.
-            unsafe { builder.dispatch(self.workgroups) }.map_err(|e| device_error(format!("dispatch: {e}")))?;
+            for stage in &self.stages {
+                builder
+                    .bind_pipeline_compute(stage.pipeline.clone())
+                    .map_err(|e| device_error(format!("binding: {e}")))?
+                    .bind_descriptor_sets(
+                        PipelineBindPoint::Compute,
+                        stage.pipeline.layout().clone(),
+                        0,
+                        stage.sets[self.current].clone(),
+                    )
+                    .map_err(|e| device_error(format!("binding: {e}")))?;
+                // SAFETY: the shader bounds-checks its invocation index against
+                // params.vertex_count, and every buffer it indexes holds vertex_count (or its
+                // spring-range) elements.
+                unsafe { builder.dispatch(self.workgroups) }.map_err(|e| device_error(format!("dispatch: {e}")))?;
+            }
             self.current = 1 - self.current;
         }
         let cb = builder.build().map_err(|e| device_error(format!("recording the frame: {e}")))?;

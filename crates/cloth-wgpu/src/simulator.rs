@@ -12,13 +12,20 @@ use crate::{BACKEND_NAME, STEP_SHADER};
 /// Invocations per workgroup of the substep kernel (the WGSL `WORKGROUP_SIZE` override).
 pub const WORKGROUP_SIZE: u32 = 64;
 
+/// One dispatch of a substep.
+struct Stage {
+    pipeline: wgpu::ComputePipeline,
+    groups: [wgpu::BindGroup; 2],
+}
+
 /// The cloth simulated by WGSL compute shaders through wgpu.
 pub struct WgpuSimulator {
     context: GpuContext,
     scene: Scene,
-    pipeline: wgpu::ComputePipeline,
-    /// `bind_groups[k]` reads state buffer `k` and writes state buffer `1 - k`.
-    bind_groups: [wgpu::BindGroup; 2],
+    /// The dispatches of one substep, in order: one for semi-implicit Euler, two for velocity
+    /// Verlet. `groups[k]` is the stage's bind group when state buffer `k` is current; a substep
+    /// leaves the new state in buffer `1 - k`.
+    stages: Vec<Stage>,
     params: wgpu::Buffer,
     spheres: wgpu::Buffer,
     positions: [wgpu::Buffer; 2],
@@ -58,7 +65,7 @@ impl WgpuSimulator {
     /// device's limits, [`SimError::Device`] when creating the GPU objects fails.
     pub fn on_device(scene: &Scene, context: GpuContext) -> Result<Self, SimError> {
         scene.validate()?;
-        SimError::require_euler(BACKEND_NAME, scene)?;
+        SimError::require_gpu_integrator(BACKEND_NAME, scene)?;
         check_limits(scene, &context.device.limits())?;
         let model = ClothModel::new(scene);
         let data = GpuBuffers::new(&model);
@@ -87,6 +94,17 @@ impl WgpuSimulator {
             init("cloth velocities B", bytemuck::cast_slice(&data.velocities), storage),
         ];
         let max_penetration = init("cloth max penetration", &[0u8; 4], storage);
+        let verlet = scene.integrator == cloth_core::Integrator::VelocityVerlet;
+        // Verlet's half-step velocities, and a sink for the positions its second kick does not
+        // write (a binding must not alias another of the same dispatch).
+        let (velocities_half, position_sink) = if verlet {
+            (
+                Some(init("cloth velocities (Verlet half step)", bytemuck::cast_slice(&data.velocities), storage)),
+                Some(init("cloth positions sink (Verlet second kick)", &[0u8; 16], storage)),
+            )
+        } else {
+            (None, None)
+        };
 
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("cloth_step.wgsl"),
@@ -130,36 +148,73 @@ impl WgpuSimulator {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let mut constants: Vec<(&str, f64)> =
-            scene.effects.shader_constants().into_iter().map(|(name, on)| (name, if on { 1.0 } else { 0.0 })).collect();
-        constants.push(("WORKGROUP_SIZE", WORKGROUP_SIZE as f64));
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("cloth substep pipeline"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("substep"),
-            compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
-            cache: None,
-        });
-        let bind_group = |label: &str, from: usize| {
-            let to = 1 - from;
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let pipeline = |stage: u32, label: &str| {
+            let mut constants: Vec<(&str, f64)> = scene
+                .effects
+                .shader_constants()
+                .into_iter()
+                .map(|(name, on)| (name, if on { 1.0 } else { 0.0 }))
+                .collect();
+            constants.push(("WORKGROUP_SIZE", WORKGROUP_SIZE as f64));
+            constants.push(("STAGE", stage as f64));
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(label),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some("substep"),
+                compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
+                cache: None,
+            })
+        };
+        let bind_group = |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4]| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(&label),
                 layout: &layout,
                 entries: &[
                     wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 1, resource: spheres.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 2, resource: ranges.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 3, resource: ends.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 4, resource: positions[from].as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 5, resource: velocities[from].as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 6, resource: positions[to].as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 7, resource: velocities[to].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: x_in.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 5, resource: v_in.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 6, resource: x_out.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 7, resource: v_out.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 8, resource: max_penetration.as_entire_binding() },
                 ],
             })
         };
-        let bind_groups = [bind_group("cloth substep A -> B", 0), bind_group("cloth substep B -> A", 1)];
+        let name = ["A", "B"];
+        let stages = match (&velocities_half, &position_sink) {
+            (Some(v_half), Some(sink)) => vec![
+                Stage {
+                    pipeline: pipeline(1, "cloth Verlet kick and drift pipeline"),
+                    groups: [0, 1].map(|k| {
+                        bind_group(
+                            format!("cloth Verlet kick and drift {} -> {}", name[k], name[1 - k]),
+                            [&positions[k], &velocities[k], &positions[1 - k], v_half],
+                        )
+                    }),
+                },
+                Stage {
+                    pipeline: pipeline(2, "cloth Verlet second kick pipeline"),
+                    groups: [0, 1].map(|k| {
+                        bind_group(
+                            format!("cloth Verlet second kick -> {}", name[1 - k]),
+                            [&positions[1 - k], v_half, sink, &velocities[1 - k]],
+                        )
+                    }),
+                },
+            ],
+            _ => vec![Stage {
+                pipeline: pipeline(0, "cloth substep pipeline"),
+                groups: [0, 1].map(|k| {
+                    bind_group(
+                        format!("cloth substep {} -> {}", name[k], name[1 - k]),
+                        [&positions[k], &velocities[k], &positions[1 - k], &velocities[1 - k]],
+                    )
+                }),
+            }],
+        };
         if let Some(e) = pollster::block_on(oom_scope.pop()) {
             return Err(device_error(format!("out of device memory while creating the buffers: {e}")));
         }
@@ -180,8 +235,7 @@ impl WgpuSimulator {
         Ok(Self {
             free: data.positions.iter().map(|p| p[3]).collect(),
             scene: scene.clone(),
-            pipeline,
-            bind_groups,
+            stages,
             params,
             spheres,
             positions,
@@ -314,10 +368,18 @@ impl Simulator for WgpuSimulator {
                 label: Some("cloth substeps"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipeline);
+            let single = self.stages.len() == 1;
+            if single {
+                pass.set_pipeline(&self.stages[0].pipeline);
+            }
             for _ in 0..substeps {
-                pass.set_bind_group(0, &self.bind_groups[self.current], &[]);
-                pass.dispatch_workgroups(self.workgroups.0, self.workgroups.1, 1);
+                for stage in &self.stages {
+                    if !single {
+                        pass.set_pipeline(&stage.pipeline);
+                    }
+                    pass.set_bind_group(0, &stage.groups[self.current], &[]);
+                    pass.dispatch_workgroups(self.workgroups.0, self.workgroups.1, 1);
+                }
                 self.current = 1 - self.current;
             }
         }

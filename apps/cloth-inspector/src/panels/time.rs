@@ -1,6 +1,6 @@
 //! Time panel: frame length, substeps (fixed or auto), play/pause/step, speed.
 
-use cloth_core::{Substeps, stability};
+use cloth_core::{Integrator, Substeps, stability};
 use eframe::egui;
 
 use super::{PanelContext, problems_for, quantity};
@@ -30,6 +30,18 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>, playing: &mut bool, s
     });
     time.substeps = if auto { Substeps::Auto } else { Substeps::Fixed(n) };
     problems_for(ui, ctx.problems, "time");
+    ui.horizontal(|ui| {
+        ui.label("integrator");
+        egui::ComboBox::from_id_salt("integrator").selected_text(format!("{:?}", ctx.scene.integrator)).show_ui(
+            ui,
+            |ui| {
+                for integrator in Integrator::ALL {
+                    ui.selectable_value(&mut ctx.scene.integrator, integrator, format!("{integrator:?}"));
+                }
+            },
+        );
+    });
+    problems_for(ui, ctx.problems, "integrator");
     if ctx.problems.is_empty() {
         let bound = stability::stable_substep(ctx.scene);
         ui.label(format!(
