@@ -205,6 +205,69 @@ impl GpuSphere {
     }
 }
 
+/// The byte layout of one GPU struct, with the names the shaders give it and its fields.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StructLayout {
+    /// Name of the struct in the shaders.
+    pub shader_name: &'static str,
+    /// Size in bytes.
+    pub size: usize,
+    /// `(field name in the shaders, byte offset)`, in declaration order.
+    pub fields: Vec<(&'static str, usize)>,
+}
+
+/// The layouts of every struct the shaders share with the host: what each backend's layout test
+/// checks its shader against (one list, here, next to the types).
+pub fn struct_layouts() -> Vec<StructLayout> {
+    use std::mem::offset_of;
+    vec![
+        StructLayout {
+            shader_name: "SimParams",
+            size: size_of::<GpuSimParams>(),
+            fields: vec![
+                ("gravity", offset_of!(GpuSimParams, gravity)),
+                ("stiffness", offset_of!(GpuSimParams, stiffness)),
+                ("damping", offset_of!(GpuSimParams, damping)),
+                ("vertex_mass", offset_of!(GpuSimParams, vertex_mass)),
+                ("substep_dt", offset_of!(GpuSimParams, substep_dt)),
+                ("air_drag", offset_of!(GpuSimParams, air_drag)),
+                ("vertex_count", offset_of!(GpuSimParams, vertex_count)),
+                ("sphere_count", offset_of!(GpuSimParams, sphere_count)),
+                ("grid_nx", offset_of!(GpuSimParams, grid_nx)),
+                ("grid_ny", offset_of!(GpuSimParams, grid_ny)),
+                ("effects", offset_of!(GpuSimParams, effects)),
+            ],
+        },
+        StructLayout {
+            shader_name: "Sphere",
+            size: size_of::<GpuSphere>(),
+            fields: vec![
+                ("center", offset_of!(GpuSphere, center)),
+                ("radius", offset_of!(GpuSphere, radius)),
+                ("stiffness", offset_of!(GpuSphere, stiffness)),
+                ("friction", offset_of!(GpuSphere, friction)),
+                ("damping", offset_of!(GpuSphere, damping)),
+                ("pad", offset_of!(GpuSphere, _pad)),
+            ],
+        },
+        StructLayout {
+            shader_name: "SpringRange",
+            size: size_of::<GpuSpringRange>(),
+            fields: vec![("first", offset_of!(GpuSpringRange, first)), ("count", offset_of!(GpuSpringRange, count))],
+        },
+        StructLayout {
+            shader_name: "SpringEnd",
+            size: size_of::<GpuSpringEnd>(),
+            fields: vec![
+                ("other", offset_of!(GpuSpringEnd, other)),
+                ("kind", offset_of!(GpuSpringEnd, kind)),
+                ("rest_length", offset_of!(GpuSpringEnd, rest_length)),
+                ("pad", offset_of!(GpuSpringEnd, _pad)),
+            ],
+        },
+    ]
+}
+
 /// Memory a scene will need, computed from the closed-form spring counts without building
 /// anything (so that a huge grid can be refused before allocation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

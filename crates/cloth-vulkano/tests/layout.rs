@@ -2,9 +2,6 @@
 //! `#[repr(C)]` types; the specialization constants must be the effects, in order.
 
 use std::collections::HashMap;
-use std::mem::{offset_of, size_of};
-
-use cloth_core::layout::{GpuSimParams, GpuSphere, GpuSpringEnd, GpuSpringRange};
 
 /// What the SPIR-V says about its types: a minimal reflection of the decorations we check
 /// (naga's SPIR-V reader cannot read specialization-constant expressions, and this is short).
@@ -87,76 +84,28 @@ fn spirv_struct(first_member: &str, member_count: usize) -> (Vec<(String, u32)>,
     panic!("no struct starting with member {first_member} in cloth_step.spv");
 }
 
-fn check(name: &str, first_member: &str, rust_size: usize, rust_fields: &[(&str, usize)], check_span: bool) {
-    let (members, stride) = spirv_struct(first_member, rust_fields.len());
-    if check_span {
-        assert_eq!(stride, Some(rust_size as u32), "{name}: SPIR-V array stride {stride:?}, Rust size {rust_size}");
-    }
-    for ((spv_name, spv_offset), (rust_name, rust_offset)) in members.iter().zip(rust_fields) {
-        assert_eq!(spv_name.trim_start_matches('_'), rust_name.trim_start_matches('_'), "{name}: member order");
-        assert_eq!(
-            *spv_offset as usize, *rust_offset,
-            "{name}.{spv_name}: SPIR-V offset {spv_offset}, Rust {rust_offset}"
-        );
-    }
-}
-
 #[test]
-fn sim_params_layout_matches() {
-    // A uniform block's span is not recorded in SPIR-V beyond its last member: check offsets,
-    // and that the last member ends at the Rust size.
-    let fields = [
-        ("gravity", offset_of!(GpuSimParams, gravity)),
-        ("stiffness", offset_of!(GpuSimParams, stiffness)),
-        ("damping", offset_of!(GpuSimParams, damping)),
-        ("vertex_mass", offset_of!(GpuSimParams, vertex_mass)),
-        ("substep_dt", offset_of!(GpuSimParams, substep_dt)),
-        ("air_drag", offset_of!(GpuSimParams, air_drag)),
-        ("vertex_count", offset_of!(GpuSimParams, vertex_count)),
-        ("sphere_count", offset_of!(GpuSimParams, sphere_count)),
-        ("grid_nx", offset_of!(GpuSimParams, grid_nx)),
-        ("grid_ny", offset_of!(GpuSimParams, grid_ny)),
-        ("effects", offset_of!(GpuSimParams, effects)),
-    ];
-    check("SimParams", "gravity", size_of::<GpuSimParams>(), &fields, false);
-    assert_eq!(offset_of!(GpuSimParams, effects) + 4, size_of::<GpuSimParams>());
-}
-
-#[test]
-fn sphere_and_spring_layouts_match() {
-    check(
-        "Sphere",
-        "center",
-        size_of::<GpuSphere>(),
-        &[
-            ("center", offset_of!(GpuSphere, center)),
-            ("radius", offset_of!(GpuSphere, radius)),
-            ("stiffness", offset_of!(GpuSphere, stiffness)),
-            ("friction", offset_of!(GpuSphere, friction)),
-            ("damping", offset_of!(GpuSphere, damping)),
-            ("pad", offset_of!(GpuSphere, _pad)),
-        ],
-        true,
-    );
-    check(
-        "SpringRange",
-        "first",
-        size_of::<GpuSpringRange>(),
-        &[("first", offset_of!(GpuSpringRange, first)), ("count", offset_of!(GpuSpringRange, count))],
-        true,
-    );
-    check(
-        "SpringEnd",
-        "other",
-        size_of::<GpuSpringEnd>(),
-        &[
-            ("other", offset_of!(GpuSpringEnd, other)),
-            ("kind", offset_of!(GpuSpringEnd, kind)),
-            ("rest_length", offset_of!(GpuSpringEnd, rest_length)),
-            ("pad", offset_of!(GpuSpringEnd, _pad)),
-        ],
-        true,
-    );
+fn every_shared_struct_has_the_core_layout() {
+    for layout in cloth_core::layout::struct_layouts() {
+        let name = layout.shader_name;
+        let (members, stride) = spirv_struct(layout.fields[0].0, layout.fields.len());
+        // Array elements carry their size as the array's stride; the uniform block has none (its
+        // last member must end where the Rust struct does).
+        match stride {
+            Some(stride) => assert_eq!(
+                stride as usize, layout.size,
+                "{name}: SPIR-V array stride {stride}, Rust size {}",
+                layout.size
+            ),
+            None => assert_eq!(
+                layout.fields.last().map(|f| f.1 + 4),
+                Some(layout.size),
+                "{name}: the last member ends the struct"
+            ),
+        }
+        let members: Vec<(&str, usize)> = members.iter().map(|(n, o)| (n.as_str(), *o as usize)).collect();
+        assert_eq!(members, layout.fields, "{name}: SPIR-V members (left) against cloth-core's (right)");
+    }
 }
 
 #[test]
