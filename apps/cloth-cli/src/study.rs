@@ -206,6 +206,10 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         let mut scene = with(integrator, 1);
         let predicted = stability::spectral_stable_substep(&ClothModel::new(&scene));
         let safe = stability::stable_substep(&scene);
+        if !predicted.is_finite() {
+            println!("  {:<7} unconditionally stable (no bound to test)", integrator.name());
+            continue;
+        }
         let mut stable = |h: f64| {
             scene.time.frame_dt = h;
             let Ok(mut sim) = CpuSimulatorF64::new(&scene) else { return false };

@@ -131,7 +131,7 @@ fn study_accuracy_writes_a_csv_where_higher_order_is_more_accurate() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = std::fs::read_to_string(&csv).unwrap();
     let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 3 * 2, "3 integrators x 2 substep counts");
+    assert_eq!(rows.len(), 4 * 2, "4 integrators x 2 substep counts");
     let error = |method: &str, n: &str| -> f64 {
         rows.iter().find(|r| r[1] == method && r[2] == n).unwrap()[5].parse().unwrap()
     };

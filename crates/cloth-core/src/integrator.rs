@@ -10,6 +10,14 @@
 //! * [`Integrator::RungeKutta4`]: the classical four-stage method on `(x, v)`. Fourth order, not
 //!   symplectic (it slowly dissipates energy), stable for `Δt < 2√2/ω` on an undamped spring.
 //!   CPU reference only; the GPU backends refuse it with [`crate::SimError::Unsupported`].
+//! * [`Integrator::Xpbd`]: extended position-based dynamics. Gravity and drag predict the
+//!   positions, then [`XPBD_ITERATIONS`] Gauss–Seidel sweeps project every spring with the
+//!   compliance `α = 1/k` (so a spring of stiffness `k` behaves as Hooke's law in the limit of
+//!   many iterations), the spheres as non-penetration constraints, and velocities follow as
+//!   `(x' − x)/Δt`. Stable at any step; first order; springs' damping is not modelled (the method
+//!   dissipates by itself). Friction keeps the brief's Coulomb meaning on the contact's
+//!   displacement: the tangential velocity is cut by at most `c_f` times the normal correction's
+//!   velocity, and stopped when that suffices. CPU reference only.
 //!
 //! Contact and friction keep the brief's meaning under every integrator: they are forces of the
 //! state each stage evaluates. The friction's "stop within this step" term uses the step its
@@ -27,11 +35,20 @@ pub enum Integrator {
     VelocityVerlet,
     /// Classical fourth-order Runge–Kutta.
     RungeKutta4,
+    /// Extended position-based dynamics (stable at large steps).
+    Xpbd,
 }
+
+/// Gauss–Seidel sweeps over the constraints per XPBD substep.
+pub const XPBD_ITERATIONS: u32 = 10;
 
 impl Integrator {
     /// Every integrator.
-    pub const ALL: [Integrator; 3] =
+    pub const ALL: [Integrator; 4] =
+        [Integrator::SemiImplicitEuler, Integrator::VelocityVerlet, Integrator::RungeKutta4, Integrator::Xpbd];
+
+    /// The force-based (explicit) integrators: conditionally stable, with a theoretical order.
+    pub const EXPLICIT: [Integrator; 3] =
         [Integrator::SemiImplicitEuler, Integrator::VelocityVerlet, Integrator::RungeKutta4];
 
     /// Order of accuracy of the positions for smooth, conservative forces.
@@ -40,6 +57,7 @@ impl Integrator {
             Integrator::SemiImplicitEuler => 1,
             Integrator::VelocityVerlet => 2,
             Integrator::RungeKutta4 => 4,
+            Integrator::Xpbd => 1,
         }
     }
 
@@ -49,15 +67,17 @@ impl Integrator {
             Integrator::SemiImplicitEuler | Integrator::VelocityVerlet => 2.0,
             // RK4's stability region reaches ±2√2 along the imaginary axis (undamped springs).
             Integrator::RungeKutta4 => 2.0 * std::f64::consts::SQRT_2,
+            Integrator::Xpbd => f64::INFINITY,
         }
     }
 
-    /// Force evaluations per substep.
+    /// Passes over the springs per substep (force evaluations, or constraint sweeps for XPBD).
     pub fn stages(self) -> u32 {
         match self {
             Integrator::SemiImplicitEuler => 1,
             Integrator::VelocityVerlet => 2,
             Integrator::RungeKutta4 => 4,
+            Integrator::Xpbd => XPBD_ITERATIONS,
         }
     }
 
@@ -67,6 +87,7 @@ impl Integrator {
             Integrator::SemiImplicitEuler => "euler",
             Integrator::VelocityVerlet => "verlet",
             Integrator::RungeKutta4 => "rk4",
+            Integrator::Xpbd => "xpbd",
         }
     }
 }

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use crate::effects::Effect;
 use crate::error::SimError;
 use crate::forces::{air_drag_force, contact_force, friction_force, gravity_force, integrate, spring_force};
-use crate::integrator::Integrator;
+use crate::integrator::{Integrator, XPBD_ITERATIONS};
 use crate::model::ClothModel;
 use crate::real::{Real, Vec3};
 use crate::scene::Scene;
@@ -145,6 +145,7 @@ impl<R: Real> ReferenceSimulator<R> {
             Integrator::SemiImplicitEuler => self.euler_substep(),
             Integrator::VelocityVerlet => self.verlet_substep(),
             Integrator::RungeKutta4 => self.rk4_substep(),
+            Integrator::Xpbd => self.xpbd_substep(),
         }
         let depth = self.deepest_penetration();
         if depth > self.max_penetration {
@@ -223,6 +224,105 @@ impl<R: Real> ReferenceSimulator<R> {
         }
         self.positions = x_new;
         self.velocities = v_new;
+    }
+
+    /// XPBD (see [`Integrator::Xpbd`]): predict with gravity and drag, project the springs with
+    /// compliance `1/k` and the spheres as constraints (Gauss–Seidel, in spring-list order, so
+    /// deterministic), derive the velocities, then apply friction to the contacts.
+    fn xpbd_substep(&mut self) {
+        let p = &self.params;
+        let (h, m) = (p.dt, p.mass);
+        let w = R::one() / m;
+        let effects = self.scene.effects;
+        let x0 = self.positions.clone();
+        let mut x = Vec::with_capacity(x0.len());
+        for (i, &xi) in x0.iter().enumerate() {
+            if self.pinned[i] {
+                x.push(xi);
+                continue;
+            }
+            let mut v = self.velocities[i];
+            if effects.contains(Effect::Gravity) {
+                v += p.gravity * h;
+            }
+            if effects.contains(Effect::AirDrag) {
+                v += air_drag_force(m, p.air_drag, v) * (h / m);
+            }
+            x.push(xi + v * h);
+        }
+        // Each spring once (its end owned by the lower index).
+        let mut lambda = vec![R::zero(); self.ends.len()];
+        let mut normal_correction = vec![R::zero(); x.len()];
+        for _ in 0..XPBD_ITERATIONS {
+            for a in 0..x.len() {
+                #[allow(clippy::needless_range_loop)] // `e` indexes both the ends and their λ
+                for e in self.first[a]..self.first[a + 1] {
+                    let end = self.ends[e];
+                    let b = end.other;
+                    if b < a {
+                        continue;
+                    }
+                    let (wa, wb) =
+                        (if self.pinned[a] { R::zero() } else { w }, if self.pinned[b] { R::zero() } else { w });
+                    let k = p.stiffness[end.kind];
+                    if wa + wb <= R::zero() || k <= R::zero() {
+                        continue;
+                    }
+                    let d = x[a] - x[b];
+                    let length = d.length();
+                    if length <= R::zero() {
+                        continue;
+                    }
+                    let n = d * (R::one() / length);
+                    let compliance = R::one() / (k * h * h);
+                    let dl = (-(length - end.rest_length) - compliance * lambda[e]) / (wa + wb + compliance);
+                    lambda[e] = lambda[e] + dl;
+                    x[a] += n * (wa * dl);
+                    x[b] -= n * (wb * dl);
+                }
+            }
+            for (i, xi) in x.iter_mut().enumerate() {
+                if self.pinned[i] {
+                    continue;
+                }
+                for s in &p.spheres {
+                    let offset = *xi - s.center;
+                    let distance = offset.length();
+                    let depth = s.radius - distance;
+                    if depth > R::zero() && distance > R::zero() {
+                        *xi += offset * (depth / distance);
+                        normal_correction[i] = normal_correction[i] + depth;
+                    }
+                }
+            }
+        }
+        let inv_h = R::one() / h;
+        let mut v: Vec<Vec3<R>> = x.iter().zip(&x0).map(|(a, b)| (*a - *b) * inv_h).collect();
+        for (i, vi) in v.iter_mut().enumerate() {
+            if self.pinned[i] {
+                *vi = Vec3::zero();
+                continue;
+            }
+            if normal_correction[i] <= R::zero() || !effects.contains(Effect::Friction) {
+                continue;
+            }
+            for s in &p.spheres {
+                let offset = x[i] - s.center;
+                let distance = offset.length();
+                if distance <= R::zero() || distance > s.radius * R::of(1.0 + 1e-6) {
+                    continue;
+                }
+                let n = offset * (R::one() / distance);
+                let v_t = *vi - n * vi.dot(n);
+                let speed = v_t.length();
+                let budget = s.friction * normal_correction[i] * inv_h;
+                if speed > R::zero() {
+                    *vi -= v_t * (speed.min(budget) / speed);
+                }
+            }
+        }
+        self.positions = x;
+        self.velocities = v;
     }
 
     /// The brief's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).

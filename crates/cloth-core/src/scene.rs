@@ -41,7 +41,7 @@ pub struct Scene {
     /// Time stepping: frame length, substeps per frame, run length.
     pub time: TimeSpec,
     /// Time integrator. Default `SemiImplicitEuler` (the brief's). The GPU backends run it and
-    /// `VelocityVerlet`; `RungeKutta4` runs on the CPU backends.
+    /// `VelocityVerlet`; `RungeKutta4` and `Xpbd` run on the CPU backends.
     pub integrator: crate::integrator::Integrator,
     /// The effects this scene simulates. Default: the brief's (everything but air drag).
     pub effects: EffectSet,

@@ -44,7 +44,7 @@ fn measured_orders_match_the_theory() {
     let h_max = stability::stable_substep(&probe);
     let coarse = (duration / (0.5 * h_max)).ceil() as u32;
     let reference = positions_after(&smooth_scene(Integrator::RungeKutta4, duration, coarse * 4 * 64));
-    for integrator in Integrator::ALL {
+    for integrator in Integrator::EXPLICIT {
         let errors: Vec<f64> = [1, 2, 4]
             .iter()
             .map(|k| max_error(&positions_after(&smooth_scene(integrator, duration, coarse * k)), &reference))
