@@ -318,17 +318,28 @@ fn plot(rows: &[Row], path: &std::path::Path) -> Result<()> {
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let palette = [RED, BLUE, RGBColor(0, 150, 0), RGBColor(255, 140, 0), RGBColor(0, 170, 200), RGBColor(90, 0, 160)];
-    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    // One colour per integrator; f32 runs solid, f64 runs lighter.
+    let color_of = |r: &Row| {
+        let base = match r.integrator {
+            Integrator::SemiImplicitEuler => RGBColor(220, 30, 30),
+            Integrator::VelocityVerlet => RGBColor(30, 60, 220),
+            Integrator::RungeKutta4 => RGBColor(0, 150, 0),
+            Integrator::Xpbd => RGBColor(255, 140, 0),
+        };
+        if r.backend == "cpu-f64" { base.mix(0.45).to_rgba() } else { base.to_rgba() }
+    };
+    /// One curve: its label, colour and (cost, error) points.
+    type Series = (String, RGBAColor, Vec<(f64, f64)>);
+    let mut series: Vec<Series> = Vec::new();
     for r in &finite {
         let key = format!("{} {}", r.backend, r.integrator.name());
-        match series.iter_mut().find(|(k, _)| *k == key) {
-            Some((_, points)) => points.push((r.ms_per_simulated_s, r.rms_error_m)),
-            None => series.push((key, vec![(r.ms_per_simulated_s, r.rms_error_m)])),
+        match series.iter_mut().find(|(k, _, _)| *k == key) {
+            Some((_, _, points)) => points.push((r.ms_per_simulated_s, r.rms_error_m)),
+            None => series.push((key, color_of(r), vec![(r.ms_per_simulated_s, r.rms_error_m)])),
         }
     }
-    for (k, (name, points)) in series.iter().enumerate() {
-        let color = palette[k % palette.len()];
+    for (name, color, points) in &series {
+        let color = *color;
         chart
             .draw_series(LineSeries::new(points.iter().copied(), color.stroke_width(2)))
             .map_err(|e| anyhow::anyhow!("{e}"))?
