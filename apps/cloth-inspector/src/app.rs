@@ -81,6 +81,7 @@ pub struct Runtime {
     screenshot_requested: bool,
     confirm_quit: bool,
     allow_close: bool,
+    study: panels::study::StudyPanel,
 }
 
 /// The inspector.
@@ -163,6 +164,7 @@ impl InspectorApp {
                 screenshot_requested: false,
                 confirm_quit: false,
                 allow_close: false,
+                study: Default::default(),
             },
             state,
         };
@@ -579,10 +581,14 @@ impl eframe::App for InspectorApp {
             });
         });
         egui::Panel::right("stats").resizable(true).default_size(300.0).show(ui, |ui| {
-            ui.heading("Stats");
-            if let Some(sim) = self.runtime.sim.as_ref() {
-                panels::stats::show(ui, &self.runtime.stats, sim.scene());
-            }
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                ui.heading("Stats");
+                if let Some(sim) = self.runtime.sim.as_ref() {
+                    panels::stats::show(ui, &self.runtime.stats, sim.scene());
+                }
+                egui::CollapsingHeader::new("Accuracy study")
+                    .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene));
+            });
         });
         if !self.runtime.notices.is_empty() {
             egui::Panel::bottom("notices").show(ui, |ui| {

@@ -10,6 +10,7 @@ mod panels;
 mod render;
 mod state;
 mod stats;
+mod study;
 
 use std::path::PathBuf;
 

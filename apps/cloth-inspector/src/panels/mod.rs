@@ -8,6 +8,7 @@ pub mod effects;
 pub mod scene;
 pub mod springs;
 pub mod stats;
+pub mod study;
 pub mod time;
 
 use cloth_core::{Problem, Scene};

@@ -1,0 +1,73 @@
+//! Study panel: a quick accuracy study in the background (progress bar), or the last
+//! `cloth study accuracy` CSV, plotted as error against cost.
+
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
+
+use eframe::egui;
+use egui_plot::{Legend, Line, Plot, PlotPoints, Points};
+
+use crate::study::{StudyPoint, StudyProgress};
+
+/// What the panel shows.
+#[derive(Default)]
+pub struct StudyPanel {
+    running: Option<Arc<Mutex<StudyProgress>>>,
+    points: Vec<StudyPoint>,
+    message: Option<String>,
+}
+
+impl StudyPanel {
+    pub fn show(&mut self, ui: &mut egui::Ui, scene: &cloth_core::Scene) {
+        ui.horizontal(|ui| {
+            let idle = self.running.is_none();
+            if ui.add_enabled(idle, egui::Button::new("Quick study (CPU)")).on_hover_text("Every integrator at 8, 16, 32 substeps on a small copy of this scene, against an f64 RK4 reference").clicked() {
+                self.running = Some(crate::study::spawn_quick_study(scene));
+                self.message = None;
+            }
+            if ui.button("Load out/accuracy.csv").on_hover_text("The last `cloth study accuracy`").clicked() {
+                match crate::study::load_csv(std::path::Path::new("out/accuracy.csv")) {
+                    Ok(points) => {
+                        self.points = points;
+                        self.message = Some("from out/accuracy.csv".into());
+                    }
+                    Err(e) => self.message = Some(e),
+                }
+            }
+        });
+        if let Some(progress) = &self.running {
+            let p = progress.lock().map(|p| p.clone()).unwrap_or_default();
+            ui.add(
+                egui::ProgressBar::new(p.done as f32 / p.total.max(1) as f32)
+                    .text(format!("{} / {} runs", p.done, p.total)),
+            );
+            self.points = p.points.clone();
+            if let Some(e) = p.error {
+                self.message = Some(e);
+                self.running = None;
+            } else if p.total > 0 && p.done == p.total {
+                self.message = Some("quick study done".into());
+                self.running = None;
+            } else {
+                ui.ctx().request_repaint();
+            }
+        }
+        if let Some(m) = &self.message {
+            ui.label(egui::RichText::new(m).small());
+        }
+        if self.points.is_empty() {
+            return;
+        }
+        let mut series: BTreeMap<&str, Vec<[f64; 2]>> = BTreeMap::new();
+        for p in &self.points {
+            series.entry(&p.series).or_default().push([p.ms_per_simulated_s.log10(), p.rms_error_m.log10()]);
+        }
+        ui.label("log10 RMS error (m) against log10 ms per simulated second");
+        Plot::new("study").height(180.0).legend(Legend::default()).show(ui, |plot| {
+            for (name, points) in series {
+                plot.line(Line::new(name.to_string(), PlotPoints::from(points.clone())));
+                plot.points(Points::new(name.to_string(), PlotPoints::from(points)).radius(3.0));
+            }
+        });
+    }
+}

@@ -1,0 +1,140 @@
+//! A quick accuracy study run in the background (CPU backends), and the last CLI study's CSV.
+//!
+//! The full study is `cloth study accuracy` (docs/accuracy.md); this one sweeps a small copy of
+//! the current scene so a student sees, in seconds, how each integrator's error falls with cost.
+
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use cloth_core::{CpuSimulator, CpuSimulatorF64, Integrator, Scene, Simulator, Substeps};
+
+/// One point of a study: an integrator at one step, its cost and its error.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StudyPoint {
+    /// Series label, e.g. "cpu euler".
+    pub series: String,
+    /// Wall-clock ms per simulated second.
+    pub ms_per_simulated_s: f64,
+    /// RMS position error against the reference, m.
+    pub rms_error_m: f64,
+}
+
+/// Progress shared with the background thread.
+#[derive(Clone, Debug, Default)]
+pub struct StudyProgress {
+    /// Runs finished.
+    pub done: usize,
+    /// Runs in all.
+    pub total: usize,
+    /// Points measured so far (finite runs only).
+    pub points: Vec<StudyPoint>,
+    /// Set when the study cannot run, with the reason.
+    pub error: Option<String>,
+}
+
+/// Substeps per frame of the quick sweep.
+const QUICK_SUBSTEPS: [u32; 3] = [8, 16, 32];
+
+/// Runs the quick study on a copy of `scene` (at most 12 x 12, 0.25 s), updating `progress`.
+pub fn quick_study(scene: &Scene, progress: &Mutex<StudyProgress>) {
+    let mut base = scene.clone();
+    base.cloth.resolution = [base.cloth.resolution[0].min(12), base.cloth.resolution[1].min(12)];
+    let frames = (0.25 / base.time.frame_dt).round().max(1.0) as u32;
+    let with = |integrator, n| Scene {
+        integrator,
+        time: cloth_core::scene::TimeSpec { substeps: Substeps::Fixed(n), ..base.time.clone() },
+        ..base.clone()
+    };
+    let set = |f: &dyn Fn(&mut StudyProgress)| {
+        if let Ok(mut p) = progress.lock() {
+            f(&mut p);
+        }
+    };
+    set(&|p| *p = StudyProgress { total: 1 + Integrator::ALL.len() * QUICK_SUBSTEPS.len(), ..Default::default() });
+    let reference = match CpuSimulatorF64::new(&with(Integrator::RungeKutta4, 8 * QUICK_SUBSTEPS[2])) {
+        Ok(mut sim) => {
+            let _ = sim.advance(frames);
+            sim.positions().iter().map(|p| p.to_f64()).collect::<Vec<_>>()
+        }
+        Err(e) => {
+            let message = e.to_string();
+            set(&|p| p.error = Some(message.clone()));
+            return;
+        }
+    };
+    set(&|p| p.done += 1);
+    for integrator in Integrator::ALL {
+        for n in QUICK_SUBSTEPS {
+            let point = CpuSimulator::new(&with(integrator, n)).ok().and_then(|mut sim| {
+                let start = Instant::now();
+                sim.advance(frames).ok()?;
+                let seconds = start.elapsed().as_secs_f64();
+                let state = sim.read_state().ok()?;
+                let sum: f64 = state
+                    .positions
+                    .iter()
+                    .zip(&reference)
+                    .map(|(p, q)| (0..3).map(|k| (p[k] as f64 - q[k]).powi(2)).sum::<f64>())
+                    .sum();
+                let rms = (sum / reference.len().max(1) as f64).sqrt();
+                rms.is_finite().then(|| StudyPoint {
+                    series: format!("cpu {}", integrator.name()),
+                    ms_per_simulated_s: seconds * 1e3 / (frames as f64 * base.time.frame_dt),
+                    rms_error_m: rms,
+                })
+            });
+            set(&|p| {
+                p.done += 1;
+                if let Some(point) = &point {
+                    p.points.push(point.clone());
+                }
+            });
+        }
+    }
+}
+
+/// Starts the quick study on a background thread; the returned progress fills as it runs.
+pub fn spawn_quick_study(scene: &Scene) -> Arc<Mutex<StudyProgress>> {
+    let progress = Arc::new(Mutex::new(StudyProgress::default()));
+    let (scene, shared) = (scene.clone(), progress.clone());
+    std::thread::spawn(move || quick_study(&scene, &shared));
+    progress
+}
+
+/// Reads the points of a CSV written by `cloth study accuracy` (finite rows).
+pub fn load_csv(path: &std::path::Path) -> Result<Vec<StudyPoint>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut points = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() < 11 {
+            return Err(format!("{} line {}: expected 11 columns, found {}", path.display(), n + 1, f.len()));
+        }
+        let number = |s: &str| s.parse::<f64>().map_err(|e| format!("{} line {}: '{s}': {e}", path.display(), n + 1));
+        let (error, cost) = (number(f[4])?, number(f[10])?);
+        if f[9] == "true" && error.is_finite() && error > 0.0 {
+            points.push(StudyPoint {
+                series: format!("{} {}", f[0], f[1]),
+                ms_per_simulated_s: cost,
+                rms_error_m: error,
+            });
+        }
+    }
+    Ok(points)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quick_study_measures_every_integrator_and_higher_order_is_more_accurate() {
+        let progress = Mutex::new(StudyProgress::default());
+        let scene = Scene::load(&crate::panels::scene::scenes_dir().join("hanging.ron")).unwrap();
+        quick_study(&scene, &progress);
+        let p = progress.lock().unwrap();
+        assert_eq!((p.done, p.total, p.error.clone()), (p.total, 13, None));
+        let error = |series: &str| p.points.iter().find(|q| q.series == series).map(|q| q.rms_error_m).unwrap();
+        assert!(error("cpu rk4") < error("cpu verlet") && error("cpu verlet") < error("cpu euler"), "{:?}", p.points);
+    }
+}
