@@ -15,6 +15,15 @@
 //! | spheres | [`GpuSphere`] | spheres (at least 1 slot) |
 //! | parameters (uniform) | [`GpuSimParams`] | 1 |
 //!
+//! XPBD (`Integrator::Xpbd`) adds, for its constraint projection:
+//!
+//! | buffer | element | count |
+//! |---|---|---|
+//! | constraints | [`GpuConstraint`] (each spring once, grouped by colour) | springs |
+//! | colour ranges (uniform, dynamic offset) | [`GpuColorRange`] every [`COLOR_RANGE_STRIDE`] bytes | 2 × colours |
+//! | Lagrange multipliers `λ` | `f32` | springs |
+//! | normal corrections | `f32` (m, summed over the iterations) | vertices |
+//!
 //! Why per-vertex spring ranges: one GPU thread updates one vertex. It walks its own list of
 //! spring ends (each spring is stored at both of its ends), sums the forces and writes only its
 //! own vertex. No two threads write the same memory, so no atomics are needed and the result
@@ -22,7 +31,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::coloring::COLOR_COUNT;
 use crate::effects::Effect;
+use crate::integrator::Integrator;
 use crate::model::ClothModel;
 use crate::scene::Scene;
 use crate::springs::SpringKind;
@@ -99,6 +110,52 @@ pub struct GpuSpringEnd {
     pub _pad: u32,
 }
 
+/// One spring as an XPBD constraint between vertices `a < b` (16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuConstraint {
+    /// First vertex (the lower index).
+    pub a: u32,
+    /// Second vertex.
+    pub b: u32,
+    /// `SpringKind as u32`.
+    pub kind: u32,
+    /// Rest length, m.
+    pub rest_length: f32,
+}
+
+/// The constraints one XPBD projection dispatch handles: one colour (16 bytes, stored every
+/// [`COLOR_RANGE_STRIDE`] bytes of a uniform buffer and selected by a dynamic offset).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuColorRange {
+    /// Index of the colour's first constraint.
+    pub first: u32,
+    /// Number of constraints of the colour.
+    pub count: u32,
+    /// 1 in the first iteration of a substep, where the multipliers `λ` start from 0.
+    pub first_iteration: u32,
+    /// Padding to 16 bytes.
+    pub _pad: u32,
+}
+
+/// Bytes between two [`GpuColorRange`]s in their uniform buffer: 256, the largest
+/// `minUniformBufferOffsetAlignment` Vulkan allows (and wgpu's default), so dynamic offsets are
+/// valid on every device.
+pub const COLOR_RANGE_STRIDE: u64 = 256;
+
+/// Bytes of the colour-range uniform buffer: `2 × COLOR_COUNT` ranges (first iteration and the
+/// others).
+pub const COLOR_RANGE_BUFFER_BYTES: u64 = 2 * COLOR_COUNT as u64 * COLOR_RANGE_STRIDE;
+
+impl GpuColorRange {
+    /// Byte offset of the range of colour `color` in iteration `iteration` (the dynamic offset).
+    pub fn offset(color: usize, iteration: u32) -> u32 {
+        let slot = if iteration == 0 { color } else { COLOR_COUNT + color };
+        (slot as u64 * COLOR_RANGE_STRIDE) as u32
+    }
+}
+
 impl GpuSimParams {
     /// The parameters of a scene, in `f32`.
     pub fn from_scene(scene: &Scene) -> Self {
@@ -137,6 +194,11 @@ pub struct GpuBuffers {
     /// Spheres (at least one element, so the buffer is never empty; `params.sphere_count` says
     /// how many are real).
     pub spheres: Vec<GpuSphere>,
+    /// XPBD only (empty otherwise): every spring once, grouped by colour (at least one element).
+    pub constraints: Vec<GpuConstraint>,
+    /// XPBD only (empty otherwise): the contents of the colour-range uniform buffer,
+    /// [`COLOR_RANGE_BUFFER_BYTES`] bytes.
+    pub color_ranges: Vec<u8>,
 }
 
 impl GpuBuffers {
@@ -176,19 +238,67 @@ impl GpuBuffers {
         if spheres.is_empty() {
             spheres.push(GpuSphere::default());
         }
-        Self { params: GpuSimParams::from_scene(scene), positions, velocities, spring_ranges, spring_ends, spheres }
+        let (constraints, color_ranges) =
+            if scene.integrator == Integrator::Xpbd { xpbd_constraints(model) } else { (Vec::new(), Vec::new()) };
+        Self {
+            params: GpuSimParams::from_scene(scene),
+            positions,
+            velocities,
+            spring_ranges,
+            spring_ends,
+            spheres,
+            constraints,
+            color_ranges,
+        }
     }
 
-    /// Bytes of device memory these buffers take, counting both ping-pong copies.
+    /// Bytes of device memory these buffers take, counting both ping-pong copies and the XPBD
+    /// multipliers and normal corrections (not the integrators' small scratch buffers).
     pub fn device_bytes(&self) -> u64 {
         let b = |n: usize, size: usize| (n * size) as u64;
+        let xpbd = if self.constraints.is_empty() {
+            0
+        } else {
+            b(self.constraints.len(), 16 + 4) + b(self.positions.len(), 4) + self.color_ranges.len() as u64
+        };
         2 * b(self.positions.len(), 16)
             + 2 * b(self.velocities.len(), 16)
             + b(self.spring_ranges.len(), 8)
             + b(self.spring_ends.len(), 16)
             + b(self.spheres.len(), 32)
             + size_of::<GpuSimParams>() as u64
+            + xpbd
     }
+}
+
+/// XPBD's constraint list (grouped by colour) and the colour-range uniform buffer's bytes.
+fn xpbd_constraints(model: &ClothModel) -> (Vec<GpuConstraint>, Vec<u8>) {
+    let colors = model.spring_colors();
+    let mut constraints: Vec<GpuConstraint> = colors
+        .order
+        .iter()
+        .map(|&s| {
+            let s = &model.springs[s as usize];
+            GpuConstraint { a: s.a, b: s.b, kind: s.kind as u32, rest_length: s.rest_length as f32 }
+        })
+        .collect();
+    if constraints.is_empty() {
+        constraints.push(GpuConstraint::default());
+    }
+    let mut bytes = vec![0u8; COLOR_RANGE_BUFFER_BYTES as usize];
+    for iteration in [0, 1] {
+        for color in 0..COLOR_COUNT {
+            let range = GpuColorRange {
+                first: colors.first[color],
+                count: colors.first[color + 1] - colors.first[color],
+                first_iteration: u32::from(iteration == 0),
+                _pad: 0,
+            };
+            let at = GpuColorRange::offset(color, iteration) as usize;
+            bytes[at..at + size_of::<GpuColorRange>()].copy_from_slice(bytemuck::bytes_of(&range));
+        }
+    }
+    (constraints, bytes)
 }
 
 impl GpuSphere {
@@ -256,6 +366,26 @@ pub fn struct_layouts() -> Vec<StructLayout> {
             fields: vec![("first", offset_of!(GpuSpringRange, first)), ("count", offset_of!(GpuSpringRange, count))],
         },
         StructLayout {
+            shader_name: "Constraint",
+            size: size_of::<GpuConstraint>(),
+            fields: vec![
+                ("a", offset_of!(GpuConstraint, a)),
+                ("b", offset_of!(GpuConstraint, b)),
+                ("kind", offset_of!(GpuConstraint, kind)),
+                ("rest_length", offset_of!(GpuConstraint, rest_length)),
+            ],
+        },
+        StructLayout {
+            shader_name: "ColorRange",
+            size: size_of::<GpuColorRange>(),
+            fields: vec![
+                ("first", offset_of!(GpuColorRange, first)),
+                ("count", offset_of!(GpuColorRange, count)),
+                ("first_iteration", offset_of!(GpuColorRange, first_iteration)),
+                ("pad", offset_of!(GpuColorRange, _pad)),
+            ],
+        },
+        StructLayout {
             shader_name: "SpringEnd",
             size: size_of::<GpuSpringEnd>(),
             fields: vec![
@@ -294,7 +424,13 @@ impl MemoryEstimate {
             .map(|k| k.count_in_grid(nx as u64, ny as u64) as u128)
             .sum();
         let ends = (2 * springs).max(1);
-        let device_bytes = 4 * 16 * vertices + 8 * vertices + 16 * ends + 32 * scene.spheres.len().max(1) as u128 + 80;
+        let xpbd = if scene.integrator == Integrator::Xpbd {
+            20 * springs.max(1) + 4 * vertices + COLOR_RANGE_BUFFER_BYTES as u128
+        } else {
+            0
+        };
+        let device_bytes =
+            4 * 16 * vertices + 8 * vertices + 16 * ends + 32 * scene.spheres.len().max(1) as u128 + 80 + xpbd;
         // Host: f64 positions + pins, the spring list (32 B each) and f64 lists (24 B each).
         let host_bytes = vertices * (24 + 1 + 4) + springs * 32 + ends * 24 + device_bytes;
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
@@ -317,17 +453,39 @@ mod tests {
         assert_eq!(size_of::<GpuSphere>(), 32);
         assert_eq!(size_of::<GpuSpringRange>(), 8);
         assert_eq!(size_of::<GpuSpringEnd>(), 16);
+        assert_eq!(size_of::<GpuConstraint>(), 16);
+        assert_eq!(size_of::<GpuColorRange>(), 16);
     }
 
     #[test]
     fn estimate_matches_the_built_buffers() {
-        for res in [[2, 2], [7, 13], [32, 32]] {
-            let scene = Scene {
-                cloth: crate::scene::ClothSpec { resolution: res, ..Default::default() },
-                ..Default::default()
-            };
-            let buffers = GpuBuffers::new(&ClothModel::new(&scene));
-            assert_eq!(MemoryEstimate::of(&scene).device_bytes, buffers.device_bytes(), "{res:?}");
+        for integrator in [Integrator::SemiImplicitEuler, Integrator::Xpbd] {
+            for res in [[2, 2], [7, 13], [32, 32]] {
+                let scene = Scene {
+                    cloth: crate::scene::ClothSpec { resolution: res, ..Default::default() },
+                    integrator,
+                    ..Default::default()
+                };
+                let buffers = GpuBuffers::new(&ClothModel::new(&scene));
+                assert_eq!(MemoryEstimate::of(&scene).device_bytes, buffers.device_bytes(), "{res:?} {integrator:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn colour_ranges_cover_the_constraints_once() {
+        let scene = Scene { integrator: Integrator::Xpbd, ..Default::default() };
+        let buffers = GpuBuffers::new(&ClothModel::new(&scene));
+        for iteration in [0, 5] {
+            let mut next = 0;
+            for color in 0..COLOR_COUNT {
+                let at = GpuColorRange::offset(color, iteration) as usize;
+                let range: GpuColorRange = bytemuck::pod_read_unaligned(&buffers.color_ranges[at..at + 16]);
+                assert_eq!(range.first, next);
+                assert_eq!(range.first_iteration, u32::from(iteration == 0));
+                next += range.count;
+            }
+            assert_eq!(next as usize, buffers.constraints.len());
         }
     }
 }

@@ -6,8 +6,10 @@
 //! * [`effects`]: the physical effects a scene switches on ([`EffectSet`]);
 //! * [`grid`] and [`springs`]: the `nx × ny` mesh and its structural, shear and bend springs;
 //! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
+//! * [`coloring`]: the springs in sets that share no vertex (XPBD's parallel projection order);
 //! * [`layout`]: the GPU buffer layouts (`#[repr(C)]`, `bytemuck`), shared by all backends;
 //! * [`forces`]: the brief's force model, one function per force;
+//! * [`constraints`]: XPBD's constraint projections, one function per constraint;
 //! * [`reference`](mod@reference): the CPU reference stepper, the test oracle;
 //! * [`integrator`]: semi-implicit Euler (the brief's), velocity Verlet, RK4;
 //! * [`stability`]: the largest stable substep;
@@ -27,6 +29,8 @@
 
 #![warn(missing_docs)]
 
+pub mod coloring;
+pub mod constraints;
 pub mod effects;
 pub mod energy;
 pub mod error;

@@ -92,6 +92,11 @@ impl ClothModel {
         self.grid.vertex_count()
     }
 
+    /// The springs grouped into colours that share no vertex (XPBD's projection order).
+    pub fn spring_colors(&self) -> crate::coloring::SpringColors {
+        crate::coloring::SpringColors::new(&self.springs, self.grid.nx)
+    }
+
     /// Number of springs of each kind, `[structural, shear, bend]`.
     pub fn spring_counts(&self) -> [usize; 3] {
         springs::count_by_kind(&self.springs)

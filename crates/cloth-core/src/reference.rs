@@ -6,6 +6,7 @@
 
 use rayon::prelude::*;
 
+use crate::constraints::{contact_friction, project_sphere, project_spring};
 use crate::effects::Effect;
 use crate::error::SimError;
 use crate::forces::{air_drag_force, contact_force, friction_force, gravity_force, integrate, spring_force};
@@ -22,6 +23,15 @@ const PARALLEL_CHUNK: usize = 512;
 #[derive(Clone, Copy, Debug)]
 struct End<R> {
     other: usize,
+    kind: usize,
+    rest_length: R,
+}
+
+/// One spring as an XPBD constraint (vertex `a` < `b`) in precision `R`.
+#[derive(Clone, Copy, Debug)]
+struct Constraint<R> {
+    a: usize,
+    b: usize,
     kind: usize,
     rest_length: R,
 }
@@ -86,6 +96,8 @@ pub struct ReferenceSimulator<R: Real> {
     /// Start of each vertex's spring list in `ends`.
     first: Vec<usize>,
     ends: Vec<End<R>>,
+    /// XPBD only (empty otherwise): every spring once, grouped by colour.
+    constraints: Vec<Constraint<R>>,
     pinned: Vec<bool>,
     positions: Vec<Vec3<R>>,
     velocities: Vec<Vec3<R>>,
@@ -117,6 +129,24 @@ impl<R: Real> ReferenceSimulator<R> {
                 .iter()
                 .map(|e| End { other: e.other as usize, kind: e.kind as usize, rest_length: R::of(e.rest_length) })
                 .collect(),
+            constraints: if scene.integrator == Integrator::Xpbd {
+                model
+                    .spring_colors()
+                    .order
+                    .iter()
+                    .map(|&s| {
+                        let s = &model.springs[s as usize];
+                        Constraint {
+                            a: s.a as usize,
+                            b: s.b as usize,
+                            kind: s.kind as usize,
+                            rest_length: R::of(s.rest_length),
+                        }
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            },
             pinned: model.grid.pinned.clone(),
             next_positions: positions.clone(),
             next_velocities: velocities.clone(),
@@ -226,9 +256,10 @@ impl<R: Real> ReferenceSimulator<R> {
         self.velocities = v_new;
     }
 
-    /// XPBD (see [`Integrator::Xpbd`]): predict with gravity and drag, project the springs with
-    /// compliance `1/k` and the spheres as constraints (Gauss–Seidel, in spring-list order, so
-    /// deterministic), derive the velocities, then apply friction to the contacts.
+    /// XPBD (see [`Integrator::Xpbd`] and [`crate::constraints`]): predict with gravity and
+    /// drag, then [`XPBD_ITERATIONS`] times project every spring (colour by colour, in the order
+    /// of [`crate::coloring`], so exactly what the GPU's one-dispatch-per-colour computes) and
+    /// every sphere, derive the velocities `(x' − x)/Δt`, then apply friction to the contacts.
     fn xpbd_substep(&mut self) {
         let p = &self.params;
         let (h, m) = (p.dt, p.mass);
@@ -250,49 +281,34 @@ impl<R: Real> ReferenceSimulator<R> {
             }
             x.push(xi + v * h);
         }
-        // Each spring once (its end owned by the lower index).
-        let mut lambda = vec![R::zero(); self.ends.len()];
+        let inverse_mass = |i: usize| if self.pinned[i] { R::zero() } else { w };
+        let mut lambda = vec![R::zero(); self.constraints.len()];
         let mut normal_correction = vec![R::zero(); x.len()];
         for _ in 0..XPBD_ITERATIONS {
-            for a in 0..x.len() {
-                #[allow(clippy::needless_range_loop)] // `e` indexes both the ends and their λ
-                for e in self.first[a]..self.first[a + 1] {
-                    let end = self.ends[e];
-                    let b = end.other;
-                    if b < a {
-                        continue;
-                    }
-                    let (wa, wb) =
-                        (if self.pinned[a] { R::zero() } else { w }, if self.pinned[b] { R::zero() } else { w });
-                    let k = p.stiffness[end.kind];
-                    if wa + wb <= R::zero() || k <= R::zero() {
-                        continue;
-                    }
-                    let d = x[a] - x[b];
-                    let length = d.length();
-                    if length <= R::zero() {
-                        continue;
-                    }
-                    let n = d * (R::one() / length);
-                    let compliance = R::one() / (k * h * h);
-                    let dl = (-(length - end.rest_length) - compliance * lambda[e]) / (wa + wb + compliance);
-                    lambda[e] = lambda[e] + dl;
-                    x[a] += n * (wa * dl);
-                    x[b] -= n * (wb * dl);
-                }
+            // Colour by colour: the springs of one colour share no vertex, so this sequential
+            // loop computes what the GPU computes with one invocation per spring.
+            for (c, spring) in self.constraints.iter().enumerate() {
+                let (a, b) = (spring.a, spring.b);
+                let (mut x_a, mut x_b) = (x[a], x[b]);
+                let k = p.stiffness[spring.kind];
+                project_spring(
+                    &mut x_a,
+                    &mut x_b,
+                    inverse_mass(a),
+                    inverse_mass(b),
+                    spring.rest_length,
+                    k,
+                    h,
+                    &mut lambda[c],
+                );
+                (x[a], x[b]) = (x_a, x_b);
             }
             for (i, xi) in x.iter_mut().enumerate() {
                 if self.pinned[i] {
                     continue;
                 }
                 for s in &p.spheres {
-                    let offset = *xi - s.center;
-                    let distance = offset.length();
-                    let depth = s.radius - distance;
-                    if depth > R::zero() && distance > R::zero() {
-                        *xi += offset * (depth / distance);
-                        normal_correction[i] = normal_correction[i] + depth;
-                    }
+                    normal_correction[i] = normal_correction[i] + project_sphere(xi, s.center, s.radius);
                 }
             }
         }
@@ -307,18 +323,7 @@ impl<R: Real> ReferenceSimulator<R> {
                 continue;
             }
             for s in &p.spheres {
-                let offset = x[i] - s.center;
-                let distance = offset.length();
-                if distance <= R::zero() || distance > s.radius * R::of(1.0 + 1e-6) {
-                    continue;
-                }
-                let n = offset * (R::one() / distance);
-                let v_t = *vi - n * vi.dot(n);
-                let speed = v_t.length();
-                let budget = s.friction * normal_correction[i] * inv_h;
-                if speed > R::zero() {
-                    *vi -= v_t * (speed.min(budget) / speed);
-                }
+                *vi = contact_friction(*vi, x[i], s.center, s.radius, s.friction, normal_correction[i], h);
             }
         }
         self.positions = x;

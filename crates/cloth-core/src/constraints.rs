@@ -1,0 +1,148 @@
+//! The constraint projections of XPBD ([`crate::Integrator::Xpbd`]), one function per
+//! constraint, as the force model is one function per force in [`crate::forces`].
+//!
+//! XPBD (Macklin, Müller & Chentanez 2016) moves positions instead of summing forces. A spring of
+//! stiffness `k` becomes the constraint `C = |x_a − x_b| − L0` with compliance `α = 1/k`; with the
+//! time-scaled compliance `α̃ = α/Δt²`, one projection computes the change of the spring's
+//! Lagrange multiplier
+//!
+//! ```text
+//! Δλ = (−C − α̃ λ) / (w_a + w_b + α̃)
+//! ```
+//!
+//! (`w = 1/m`, 0 for a pinned vertex) and moves the ends along `n = (x_a − x_b)/|x_a − x_b|` by
+//! `+w_a Δλ n` and `−w_b Δλ n`. The accumulated `λ` makes the result independent of the number
+//! of iterations in the limit: the spring then acts as Hooke's law with stiffness `k`, while a
+//! stiff spring (`α̃ → 0`) becomes a hard length constraint instead of an unstable step.
+//!
+//! The GPU shaders (`shaders/wgsl/xpbd.wgsl`, `shaders/glsl/xpbd.comp`) implement the same
+//! functions with the same names and the same order of operations.
+
+use crate::real::{Real, Vec3};
+
+/// Projects one spring constraint. `x_a`, `x_b` are moved in place; `lambda` is the spring's
+/// accumulated multiplier (N·s², starts at 0 in each substep). `inverse_mass_a/b` in 1/kg (0 for
+/// a pinned end), `stiffness` in N/m, `dt` in s. Does nothing for a zero-length spring, two
+/// pinned ends or a zero stiffness.
+#[allow(clippy::too_many_arguments)]
+pub fn project_spring<R: Real>(
+    x_a: &mut Vec3<R>,
+    x_b: &mut Vec3<R>,
+    inverse_mass_a: R,
+    inverse_mass_b: R,
+    rest_length: R,
+    stiffness: R,
+    dt: R,
+    lambda: &mut R,
+) {
+    if inverse_mass_a + inverse_mass_b <= R::zero() || stiffness <= R::zero() {
+        return;
+    }
+    let d = *x_a - *x_b;
+    let length = d.length();
+    if length <= R::zero() {
+        return;
+    }
+    let n = d * (R::one() / length);
+    let compliance = R::one() / (stiffness * dt * dt);
+    let delta_lambda =
+        (-(length - rest_length) - compliance * *lambda) / (inverse_mass_a + inverse_mass_b + compliance);
+    *lambda = *lambda + delta_lambda;
+    *x_a += n * (inverse_mass_a * delta_lambda);
+    *x_b -= n * (inverse_mass_b * delta_lambda);
+}
+
+/// Projects a vertex out of a sphere (the non-penetration constraint `|x − c| ≥ r`, with zero
+/// compliance): moves `x` to the surface along the outward normal and returns the correction's
+/// length, m (0 when outside). XPBD's counterpart of the brief's penalty force `F_c = k_c d`.
+pub fn project_sphere<R: Real>(x: &mut Vec3<R>, center: Vec3<R>, radius: R) -> R {
+    let offset = *x - center;
+    let distance = offset.length();
+    let depth = radius - distance;
+    if depth > R::zero() && distance > R::zero() {
+        *x += offset * (depth / distance);
+        depth
+    } else {
+        R::zero()
+    }
+}
+
+/// Coulomb friction on a contact after the projections, on the velocity `v` (m/s): the brief's
+/// `F_f = −min(|R_ot|, c_f |R_on|) 1_t` in position form. The normal "force" is the normal
+/// correction over the substep, `normal_correction / Δt` (m/s), so friction removes at most
+/// `c_f` times that from the tangential velocity, and stops the vertex (static friction) when
+/// that suffices. `x` is the projected position; a vertex not on the sphere (beyond a relative
+/// `1e-6` of its radius) is left alone.
+pub fn contact_friction<R: Real>(
+    v: Vec3<R>,
+    x: Vec3<R>,
+    center: Vec3<R>,
+    radius: R,
+    coefficient: R,
+    normal_correction: R,
+    dt: R,
+) -> Vec3<R> {
+    let offset = x - center;
+    let distance = offset.length();
+    if distance <= R::zero() || distance > radius * R::of(1.0 + 1e-6) {
+        return v;
+    }
+    let n = offset * (R::one() / distance);
+    let v_t = v - n * v.dot(n);
+    let speed = v_t.length();
+    let budget = coefficient * normal_correction * (R::one() / dt);
+    if speed > R::zero() { v - v_t * (speed.min(budget) / speed) } else { v }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn v(x: f64, y: f64, z: f64) -> Vec3<f64> {
+        Vec3::new(x, y, z)
+    }
+
+    #[test]
+    fn a_stiff_spring_is_restored_to_its_rest_length_in_one_projection() {
+        let (mut a, mut b, mut lambda) = (v(0., 0., 0.), v(2., 0., 0.), 0.0);
+        project_spring(&mut a, &mut b, 1.0, 1.0, 1.0, 1e12, 0.01, &mut lambda);
+        assert!(((b - a).length() - 1.0).abs() < 1e-6, "{a:?} {b:?}");
+        assert!((a.x - 0.5).abs() < 1e-6 && (b.x - 1.5).abs() < 1e-6, "equal masses move equally");
+    }
+
+    #[test]
+    fn a_pinned_end_does_not_move() {
+        let (mut a, mut b, mut lambda) = (v(0., 0., 0.), v(2., 0., 0.), 0.0);
+        project_spring(&mut a, &mut b, 0.0, 1.0, 1.0, 1e12, 0.01, &mut lambda);
+        assert_eq!(a, v(0., 0., 0.));
+        assert!((b.x - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_compliant_spring_moves_as_hookes_law_over_one_step() {
+        // One free unit mass on a spring of k = 10 N/m stretched by 0.1 m, Δt = 0.01 s: the
+        // position change over the step is F Δt²/m = k·0.1·Δt² to first order in k Δt²/m.
+        let (mut a, mut b, mut lambda) = (v(0., 0., 0.), v(1.1, 0., 0.), 0.0);
+        project_spring(&mut a, &mut b, 0.0, 1.0, 1.0, 10.0, 0.01, &mut lambda);
+        let expected = 10.0 * 0.1 * 0.01 * 0.01;
+        assert!(((1.1 - b.x) - expected).abs() < expected * 1e-2, "{}", 1.1 - b.x);
+    }
+
+    #[test]
+    fn spheres_push_out_to_the_surface() {
+        let mut x = v(0., 0.9, 0.);
+        let depth = project_sphere(&mut x, v(0., 0., 0.), 1.0);
+        assert!((depth - 0.1).abs() < 1e-12 && (x.y - 1.0).abs() < 1e-12);
+        assert_eq!(project_sphere(&mut x, v(0., 0., 0.), 0.5), 0.0);
+    }
+
+    #[test]
+    fn friction_stops_a_slow_slide_and_slows_a_fast_one() {
+        let (c, x) = (v(0., 0., 0.), v(0., 1., 0.));
+        // Budget c_f · correction / Δt = 0.5 · 0.01 / 0.01 = 0.5 m/s.
+        let slow = contact_friction(v(0.3, 0., 0.), x, c, 1.0, 0.5, 0.01, 0.01);
+        assert!(slow.length() < 1e-12);
+        let fast = contact_friction(v(2.0, -1.0, 0.), x, c, 1.0, 0.5, 0.01, 0.01);
+        assert!((fast.x - 1.5).abs() < 1e-12 && (fast.y + 1.0).abs() < 1e-12, "{fast:?}");
+    }
+}
