@@ -123,6 +123,36 @@ fn verlet_matches_the_reference_on_a_short_horizon(backend: &Backend) {
     }
 }
 
+/// XPBD (predict, colour-by-colour spring projections, sphere projections, friction: one
+/// dispatch per pass on the GPU) against the f32 CPU reference's XPBD, which projects the colours
+/// in the same order. The contact scene runs past the landing, so friction and the sphere
+/// projection are exercised.
+fn xpbd_matches_the_reference_on_a_short_horizon(backend: &Backend) {
+    for (name, mut scene, frames) in [
+        ("drape 7x13 through the landing", with_grid(scene("drape.ron"), [7, 13]), 20),
+        ("hanging 13x5 pinned", with_grid(scene("hanging.ron"), [13, 5]), 30),
+        ("hold 12x12 with friction", with_grid(scene("hold.ron"), [12, 12]), 14),
+    ] {
+        scene.integrator = cloth_core::Integrator::Xpbd;
+        let Some((state, penetration)) = run(backend, &scene, frames) else { return };
+        assert_eq!(state.non_finite_count(), 0, "{name}");
+        let d = max_difference(&state, &reference_f32(&scene, frames));
+        eprintln!(
+            "{}: XPBD {name}: {frames} frames, max |x - x_f32| = {d:.3e} m, penetration {penetration:.2e} m",
+            backend.name
+        );
+        assert!(d <= F32_TOLERANCE_M, "{name}: XPBD differs from the f32 reference by {d} m");
+        if name.contains("landing") || name.contains("friction") {
+            let sphere = &scene.spheres[0];
+            let touching = state.positions.iter().any(|p| {
+                let d: f64 = (0..3).map(|k| (p[k] as f64 - sphere.center[k]).powi(2)).sum::<f64>().sqrt();
+                d < sphere.radius * 1.01
+            });
+            assert!(touching, "{name}: the cloth should be on the sphere by frame {frames}");
+        }
+    }
+}
+
 fn bit_exact_with_the_f32_reference(backend: &Backend) {
     let scene = with_grid(scene("drape.ron"), [7, 13]);
     let Some((state, _)) = run(backend, &scene, 12) else { return };
@@ -432,6 +462,7 @@ conformance! {
     cases: [
         short_horizon_matches_the_references,
         verlet_matches_the_reference_on_a_short_horizon,
+        xpbd_matches_the_reference_on_a_short_horizon,
         bit_exact_with_the_f32_reference,
         long_horizon_outcomes_agree,
         changing_the_grid_changes_the_vertex_count,

@@ -51,18 +51,20 @@ fn list(problems: &[Problem]) -> String {
 }
 
 impl SimError {
-    /// Refuses the integrators the GPU kernels do not run (they run semi-implicit Euler and
-    /// velocity Verlet).
+    /// Refuses the integrators the GPU kernels do not run (they run semi-implicit Euler,
+    /// velocity Verlet and XPBD).
     ///
     /// # Errors
     /// [`SimError::Unsupported`] naming the integrator and the alternatives.
     pub fn require_gpu_integrator(backend: &'static str, scene: &crate::Scene) -> Result<(), SimError> {
         match scene.integrator {
-            crate::Integrator::SemiImplicitEuler | crate::Integrator::VelocityVerlet => Ok(()),
+            crate::Integrator::SemiImplicitEuler | crate::Integrator::VelocityVerlet | crate::Integrator::Xpbd => {
+                Ok(())
+            }
             other => Err(SimError::Unsupported {
                 backend,
                 what: format!("the {other:?} integrator"),
-                fix: "use the cpu backend, or integrator: SemiImplicitEuler or VelocityVerlet".into(),
+                fix: "use the cpu backend, or integrator: SemiImplicitEuler, VelocityVerlet or Xpbd".into(),
             }),
         }
     }

@@ -252,6 +252,12 @@ impl GpuBuffers {
         }
     }
 
+    /// XPBD: the range of colour `color` in iteration `iteration`, as stored in `color_ranges`.
+    pub fn color_range(&self, color: usize, iteration: u32) -> GpuColorRange {
+        let at = GpuColorRange::offset(color, iteration) as usize;
+        self.color_ranges.get(at..at + size_of::<GpuColorRange>()).map(bytemuck::pod_read_unaligned).unwrap_or_default()
+    }
+
     /// Bytes of device memory these buffers take, counting both ping-pong copies and the XPBD
     /// multipliers and normal corrections (not the integrators' small scratch buffers).
     pub fn device_bytes(&self) -> u64 {
@@ -479,8 +485,7 @@ mod tests {
         for iteration in [0, 5] {
             let mut next = 0;
             for color in 0..COLOR_COUNT {
-                let at = GpuColorRange::offset(color, iteration) as usize;
-                let range: GpuColorRange = bytemuck::pod_read_unaligned(&buffers.color_ranges[at..at + 16]);
+                let range = buffers.color_range(color, iteration);
                 assert_eq!(range.first, next);
                 assert_eq!(range.first_iteration, u32::from(iteration == 0));
                 next += range.count;

@@ -116,6 +116,19 @@ pub trait Simulator {
     fn last_advance_counts(&self) -> AdvanceCounts {
         AdvanceCounts::default()
     }
+
+    /// GPU execution time of the advances since the last call (or since creation), s, measured
+    /// by timestamp queries at the start and end of each advance's work. `None` where there is no
+    /// GPU timer: the CPU backends, or a device without timestamp queries.
+    ///
+    /// Reading the timestamps waits for the device (one host wait), so call it when the time is
+    /// displayed or recorded, not every frame of a benchmark.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the read-back fails.
+    fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {
+        Ok(None)
+    }
 }
 
 impl Scene {

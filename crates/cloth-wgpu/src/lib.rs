@@ -13,13 +13,21 @@
 #![warn(missing_docs)]
 
 mod context;
+mod passes;
 mod simulator;
+mod timer;
 
 pub use context::{AdapterChoice, GpuContext, list_adapters};
 pub use simulator::WgpuSimulator;
 
-/// WGSL source of the substep kernel, from `shaders/wgsl/`.
-pub const STEP_SHADER: &str = include_str!("../../../shaders/wgsl/cloth_step.wgsl");
+/// WGSL source of the force-based substep kernel (`shaders/wgsl/common.wgsl` followed by
+/// `cloth_step.wgsl`): semi-implicit Euler and velocity Verlet.
+pub const STEP_SHADER: &str =
+    concat!(include_str!("../../../shaders/wgsl/common.wgsl"), include_str!("../../../shaders/wgsl/cloth_step.wgsl"));
+
+/// WGSL source of the XPBD passes (`shaders/wgsl/common.wgsl` followed by `xpbd.wgsl`).
+pub const XPBD_SHADER: &str =
+    concat!(include_str!("../../../shaders/wgsl/common.wgsl"), include_str!("../../../shaders/wgsl/xpbd.wgsl"));
 
 /// Backend name used by the tools.
 pub const BACKEND_NAME: &str = "wgpu";

@@ -6,36 +6,27 @@ use cloth_core::layout::{GpuBuffers, GpuSimParams, GpuSphere, MemoryEstimate};
 use cloth_core::{AdvanceCounts, ClothModel, ClothState, Diagnostics, Scene, SimError, Simulator};
 use wgpu::util::DeviceExt;
 
+use crate::BACKEND_NAME;
 use crate::context::{AdapterChoice, GpuContext};
-use crate::{BACKEND_NAME, STEP_SHADER};
-
-/// Invocations per workgroup of the substep kernel (the WGSL `WORKGROUP_SIZE` override).
-pub const WORKGROUP_SIZE: u32 = 64;
-
-/// One dispatch of a substep.
-struct Stage {
-    pipeline: wgpu::ComputePipeline,
-    groups: [wgpu::BindGroup; 2],
-}
+use crate::passes::{StateBuffers, SubstepPlan};
+use crate::timer::GpuTimer;
 
 /// The cloth simulated by WGSL compute shaders through wgpu.
 pub struct WgpuSimulator {
     context: GpuContext,
     scene: Scene,
-    /// The dispatches of one substep, in order: one for semi-implicit Euler, two for velocity
-    /// Verlet. `groups[k]` is the stage's bind group when state buffer `k` is current; a substep
-    /// leaves the new state in buffer `1 - k`.
-    stages: Vec<Stage>,
-    params: wgpu::Buffer,
-    spheres: wgpu::Buffer,
-    positions: [wgpu::Buffer; 2],
-    velocities: [wgpu::Buffer; 2],
-    max_penetration: wgpu::Buffer,
+    /// The dispatches of one substep (see `passes.rs`); a substep leaves the new state in buffer
+    /// `1 - k` when `k` is current.
+    plan: SubstepPlan,
+    buffers: StateBuffers,
     /// Which of the two state buffers holds the current state.
     current: usize,
     /// `w` of each vertex's position: 1 free, 0 pinned (kept to rebuild positions in `write_state`).
     free: Vec<f32>,
-    workgroups: (u32, u32),
+    /// GPU time of each advance, when the device has timestamp queries.
+    timer: Option<GpuTimer>,
+    /// GPU seconds already read from a full timer and not yet taken.
+    timed_seconds: f64,
     time_s: f64,
     substeps_run: u64,
     last_advance: AdvanceCounts,
@@ -62,7 +53,8 @@ impl WgpuSimulator {
     ///
     /// # Errors
     /// [`SimError::Scene`] for an invalid scene, [`SimError::TooLarge`] when a buffer exceeds the
-    /// device's limits, [`SimError::Device`] when creating the GPU objects fails.
+    /// device's limits, [`SimError::Unsupported`] for an integrator this backend does not run,
+    /// [`SimError::Device`] when creating the GPU objects fails.
     pub fn on_device(scene: &Scene, context: GpuContext) -> Result<Self, SimError> {
         scene.validate()?;
         SimError::require_gpu_integrator(BACKEND_NAME, scene)?;
@@ -77,150 +69,31 @@ impl WgpuSimulator {
         let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
         };
-        let params = init(
-            "cloth params",
-            bytemuck::bytes_of(&data.params),
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        );
-        let spheres = init("cloth spheres", bytemuck::cast_slice(&data.spheres), storage);
-        let ranges = init("cloth spring ranges", bytemuck::cast_slice(&data.spring_ranges), storage);
-        let ends = init("cloth spring ends", bytemuck::cast_slice(&data.spring_ends), storage);
-        let positions = [
-            init("cloth positions A", bytemuck::cast_slice(&data.positions), storage | wgpu::BufferUsages::VERTEX),
-            init("cloth positions B", bytemuck::cast_slice(&data.positions), storage | wgpu::BufferUsages::VERTEX),
-        ];
-        let velocities = [
-            init("cloth velocities A", bytemuck::cast_slice(&data.velocities), storage),
-            init("cloth velocities B", bytemuck::cast_slice(&data.velocities), storage),
-        ];
-        let max_penetration = init("cloth max penetration", &[0u8; 4], storage);
-        let verlet = scene.integrator == cloth_core::Integrator::VelocityVerlet;
-        // Verlet's half-step velocities, and a sink for the positions its second kick does not
-        // write (a binding must not alias another of the same dispatch).
-        let (velocities_half, position_sink) = if verlet {
-            (
-                Some(init("cloth velocities (Verlet half step)", bytemuck::cast_slice(&data.velocities), storage)),
-                Some(init("cloth positions sink (Verlet second kick)", &[0u8; 16], storage)),
-            )
-        } else {
-            (None, None)
-        };
-
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("cloth_step.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
-        });
-        let storage_entry = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("cloth substep bind group layout"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: wgpu::BufferSize::new(size_of::<GpuSimParams>() as u64),
-                    },
-                    count: None,
-                },
-                storage_entry(1, true),
-                storage_entry(2, true),
-                storage_entry(3, true),
-                storage_entry(4, true),
-                storage_entry(5, true),
-                storage_entry(6, false),
-                storage_entry(7, false),
-                storage_entry(8, false),
+        let buffers = StateBuffers {
+            params: init(
+                "cloth params",
+                bytemuck::bytes_of(&data.params),
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            spheres: init("cloth spheres", bytemuck::cast_slice(&data.spheres), storage),
+            positions: [
+                init("cloth positions A", bytemuck::cast_slice(&data.positions), storage | wgpu::BufferUsages::VERTEX),
+                init("cloth positions B", bytemuck::cast_slice(&data.positions), storage | wgpu::BufferUsages::VERTEX),
             ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("cloth substep pipeline layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = |stage: u32, label: &str| {
-            let mut constants: Vec<(&str, f64)> = scene
-                .effects
-                .shader_constants()
-                .into_iter()
-                .map(|(name, on)| (name, if on { 1.0 } else { 0.0 }))
-                .collect();
-            constants.push(("WORKGROUP_SIZE", WORKGROUP_SIZE as f64));
-            constants.push(("STAGE", stage as f64));
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some("substep"),
-                compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
-                cache: None,
-            })
-        };
-        let bind_group = |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4]| {
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some(&label),
-                layout: &layout,
-                entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 1, resource: spheres.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 2, resource: ranges.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 3, resource: ends.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 4, resource: x_in.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 5, resource: v_in.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 6, resource: x_out.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 7, resource: v_out.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 8, resource: max_penetration.as_entire_binding() },
-                ],
-            })
-        };
-        let name = ["A", "B"];
-        let stages = match (&velocities_half, &position_sink) {
-            (Some(v_half), Some(sink)) => vec![
-                Stage {
-                    pipeline: pipeline(1, "cloth Verlet kick and drift pipeline"),
-                    groups: [0, 1].map(|k| {
-                        bind_group(
-                            format!("cloth Verlet kick and drift {} -> {}", name[k], name[1 - k]),
-                            [&positions[k], &velocities[k], &positions[1 - k], v_half],
-                        )
-                    }),
-                },
-                Stage {
-                    pipeline: pipeline(2, "cloth Verlet second kick pipeline"),
-                    groups: [0, 1].map(|k| {
-                        bind_group(
-                            format!("cloth Verlet second kick -> {}", name[1 - k]),
-                            [&positions[1 - k], v_half, sink, &velocities[1 - k]],
-                        )
-                    }),
-                },
+            velocities: [
+                init("cloth velocities A", bytemuck::cast_slice(&data.velocities), storage),
+                init("cloth velocities B", bytemuck::cast_slice(&data.velocities), storage),
             ],
-            _ => vec![Stage {
-                pipeline: pipeline(0, "cloth substep pipeline"),
-                groups: [0, 1].map(|k| {
-                    bind_group(
-                        format!("cloth substep {} -> {}", name[k], name[1 - k]),
-                        [&positions[k], &velocities[k], &positions[1 - k], &velocities[1 - k]],
-                    )
-                }),
-            }],
+            max_penetration: init("cloth max penetration", &[0u8; 4], storage),
         };
+        let plan = crate::passes::plan(device, scene, &data, &buffers);
         if let Some(e) = pollster::block_on(oom_scope.pop()) {
             return Err(device_error(format!("out of device memory while creating the buffers: {e}")));
         }
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(device_error(format!("creating the GPU objects failed: {e}")));
         }
+        let plan = plan?;
 
         let device_error_slot = Arc::new(Mutex::new(None));
         let slot = device_error_slot.clone();
@@ -229,20 +102,14 @@ impl WgpuSimulator {
                 *s = Some(format!("device lost ({reason:?}): {message}"));
             }
         });
-        let groups = (data.positions.len() as u32).div_ceil(WORKGROUP_SIZE);
-        let max_x = device.limits().max_compute_workgroups_per_dimension.max(1);
-        let workgroups = if groups <= max_x { (groups, 1) } else { (max_x, groups.div_ceil(max_x)) };
         Ok(Self {
             free: data.positions.iter().map(|p| p[3]).collect(),
             scene: scene.clone(),
-            stages,
-            params,
-            spheres,
-            positions,
-            velocities,
-            max_penetration,
+            plan,
+            buffers,
             current: 0,
-            workgroups,
+            timer: GpuTimer::new(device, &context.queue),
+            timed_seconds: 0.0,
             time_s: 0.0,
             substeps_run: 0,
             last_advance: AdvanceCounts::default(),
@@ -254,13 +121,13 @@ impl WgpuSimulator {
     /// The buffer holding the current positions (`vec4<f32>` per vertex, xyz in m), valid until
     /// the next `advance`. Usable as a vertex buffer on the same device.
     pub fn position_buffer(&self) -> &wgpu::Buffer {
-        &self.positions[self.current]
+        &self.buffers.positions[self.current]
     }
 
     /// The buffer holding the current velocities (`vec4<f32>` per vertex, xyz in m/s), valid until
     /// the next `advance`.
     pub fn velocity_buffer(&self) -> &wgpu::Buffer {
-        &self.velocities[self.current]
+        &self.buffers.velocities[self.current]
     }
 
     /// The device and queue the simulation runs on.
@@ -275,10 +142,11 @@ impl WgpuSimulator {
         }
     }
 
-    /// Copies `sizes.len()` buffers into one staging buffer, waits once, and returns the bytes.
-    fn read_back(&mut self, sources: &[&wgpu::Buffer]) -> Result<Vec<Vec<u8>>, SimError> {
+    /// Copies the first `size` bytes of each buffer into one staging buffer, waits once, and
+    /// returns the bytes.
+    fn read_back(&mut self, sources: &[(&wgpu::Buffer, u64)]) -> Result<Vec<Vec<u8>>, SimError> {
         let device = &self.context.device;
-        let total: u64 = sources.iter().map(|b| b.size()).sum();
+        let total: u64 = sources.iter().map(|(_, size)| size).sum::<u64>().max(4);
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("cloth read-back staging"),
             size: total,
@@ -288,9 +156,11 @@ impl WgpuSimulator {
         let mut encoder =
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth read-back") });
         let mut offset = 0;
-        for b in sources {
-            encoder.copy_buffer_to_buffer(b, 0, &staging, offset, b.size());
-            offset += b.size();
+        for &(b, size) in sources {
+            if size > 0 {
+                encoder.copy_buffer_to_buffer(b, 0, &staging, offset, size);
+            }
+            offset += size;
         }
         self.context.queue.submit([encoder.finish()]);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -307,14 +177,29 @@ impl WgpuSimulator {
             staging.get_mapped_range(..).map_err(|e| device_error(format!("reading the mapped buffer: {e:?}")))?;
         let mut out = Vec::with_capacity(sources.len());
         let mut offset = 0usize;
-        for b in sources {
-            out.push(view[offset..offset + b.size() as usize].to_vec());
-            offset += b.size() as usize;
+        for &(_, size) in sources {
+            out.push(view[offset..offset + size as usize].to_vec());
+            offset += size as usize;
         }
         drop(view);
         staging.unmap();
         self.check_device()?;
         Ok(out)
+    }
+
+    /// Reads the timer's pending timestamp pairs (one host wait) and adds them to
+    /// `timed_seconds`.
+    fn read_timer(&mut self) -> Result<(), SimError> {
+        let Some(timer) = &self.timer else { return Ok(()) };
+        let (resolved, size) = (timer.resolved.clone(), timer.pending_bytes());
+        if size == 0 {
+            return Ok(());
+        }
+        let bytes = self.read_back(&[(&resolved, size)])?;
+        if let Some(timer) = &mut self.timer {
+            self.timed_seconds += timer.take(&bytes[0]);
+        }
+        Ok(())
     }
 }
 
@@ -360,33 +245,42 @@ impl Simulator for WgpuSimulator {
         if substeps == 0 {
             return Ok(());
         }
+        if self.timer.as_ref().is_some_and(GpuTimer::is_full) {
+            // Only after 256 advances without `take_gpu_seconds`: keep the measurements.
+            self.read_timer()?;
+            self.last_advance.host_waits = 1;
+        }
         let device = &self.context.device;
         let mut encoder =
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth frames") });
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("cloth substeps"),
-                timestamp_writes: None,
+                timestamp_writes: self.timer.as_ref().map(GpuTimer::pass_writes),
             });
-            let single = self.stages.len() == 1;
-            if single {
-                pass.set_pipeline(&self.stages[0].pipeline);
-            }
+            let mut bound = None;
             for _ in 0..substeps {
-                for stage in &self.stages {
-                    if !single {
-                        pass.set_pipeline(&stage.pipeline);
+                for step in &self.plan.passes {
+                    if bound != Some(step.pipeline) {
+                        pass.set_pipeline(&self.plan.pipelines[step.pipeline]);
+                        bound = Some(step.pipeline);
                     }
-                    pass.set_bind_group(0, &stage.groups[self.current], &[]);
-                    pass.dispatch_workgroups(self.workgroups.0, self.workgroups.1, 1);
+                    match step.dynamic_offset {
+                        Some(offset) => pass.set_bind_group(0, &step.groups[self.current], &[offset]),
+                        None => pass.set_bind_group(0, &step.groups[self.current], &[]),
+                    }
+                    pass.dispatch_workgroups(step.workgroups.0, step.workgroups.1, 1);
                 }
                 self.current = 1 - self.current;
             }
         }
+        if let Some(timer) = &mut self.timer {
+            timer.resolve(&mut encoder);
+        }
         self.context.queue.submit([encoder.finish()]);
         self.last_advance.submissions = 1;
         // Frees finished work without waiting for the GPU.
-        let _ = device.poll(wgpu::PollType::Poll);
+        let _ = self.context.device.poll(wgpu::PollType::Poll);
         let dt = self.scene.substep_dt();
         for _ in 0..substeps {
             self.time_s += dt;
@@ -401,18 +295,18 @@ impl Simulator for WgpuSimulator {
         }
         scene.validate()?;
         let queue = &self.context.queue;
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&GpuSimParams::from_scene(scene)));
+        queue.write_buffer(&self.buffers.params, 0, bytemuck::bytes_of(&GpuSimParams::from_scene(scene)));
         if scene.effects.contains(cloth_core::Effect::SphereContact) && !scene.spheres.is_empty() {
             let spheres: Vec<GpuSphere> = scene.spheres.iter().map(GpuSphere::from_spec).collect();
-            queue.write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
+            queue.write_buffer(&self.buffers.spheres, 0, bytemuck::cast_slice(&spheres));
         }
         self.scene = scene.clone();
         Ok(())
     }
 
     fn read_state(&mut self) -> Result<ClothState, SimError> {
-        let (p, v) = (self.positions[self.current].clone(), self.velocities[self.current].clone());
-        let bytes = self.read_back(&[&p, &v])?;
+        let (p, v) = (self.buffers.positions[self.current].clone(), self.buffers.velocities[self.current].clone());
+        let bytes = self.read_back(&[(&p, p.size()), (&v, v.size())])?;
         let xyz = |b: &[u8]| bytemuck::cast_slice::<u8, [f32; 4]>(b).iter().map(|q| [q[0], q[1], q[2]]).collect();
         Ok(ClothState { time_s: self.time_s, positions: xyz(&bytes[0]), velocities: xyz(&bytes[1]) })
     }
@@ -423,21 +317,29 @@ impl Simulator for WgpuSimulator {
             state.positions.iter().zip(&self.free).map(|(p, &w)| [p[0], p[1], p[2], w]).collect();
         let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
         let queue = &self.context.queue;
-        queue.write_buffer(&self.positions[self.current], 0, bytemuck::cast_slice(&positions));
-        queue.write_buffer(&self.velocities[self.current], 0, bytemuck::cast_slice(&velocities));
+        queue.write_buffer(&self.buffers.positions[self.current], 0, bytemuck::cast_slice(&positions));
+        queue.write_buffer(&self.buffers.velocities[self.current], 0, bytemuck::cast_slice(&velocities));
         self.time_s = state.time_s;
         Ok(())
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
-        let buffer = self.max_penetration.clone();
-        let bytes = self.read_back(&[&buffer])?;
+        let buffer = self.buffers.max_penetration.clone();
+        let bytes = self.read_back(&[(&buffer, 4)])?;
         let max_penetration = f32::from_bits(u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]));
         Ok(Diagnostics { max_penetration_m: max_penetration as f64, substeps_run: self.substeps_run })
     }
 
     fn last_advance_counts(&self) -> AdvanceCounts {
         self.last_advance
+    }
+
+    fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {
+        if self.timer.is_none() {
+            return Ok(None);
+        }
+        self.read_timer()?;
+        Ok(Some(std::mem::take(&mut self.timed_seconds)))
     }
 }
 

@@ -25,11 +25,16 @@ fn every_shared_struct_has_the_core_layout() {
 }
 
 #[test]
-fn every_effect_has_an_override_in_the_shader() {
-    let module = naga::front::wgsl::parse_str(cloth_wgpu::STEP_SHADER).unwrap();
-    let overrides: Vec<String> = module.overrides.iter().filter_map(|(_, o)| o.name.clone()).collect();
-    for (name, _) in cloth_core::EffectSet::brief().shader_constants() {
-        assert!(overrides.iter().any(|o| o == name), "no override {name} in cloth_step.wgsl: {overrides:?}");
+fn every_effect_has_an_override_in_every_kernel() {
+    for (file, source, stage) in
+        [("cloth_step.wgsl", cloth_wgpu::STEP_SHADER, "STAGE"), ("xpbd.wgsl", cloth_wgpu::XPBD_SHADER, "XPBD_PASS")]
+    {
+        let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let overrides: Vec<String> = module.overrides.iter().filter_map(|(_, o)| o.name.clone()).collect();
+        for (name, _) in cloth_core::EffectSet::brief().shader_constants() {
+            assert!(overrides.iter().any(|o| o == name), "no override {name} in {file}: {overrides:?}");
+        }
+        assert!(overrides.iter().any(|o| o == "WORKGROUP_SIZE"), "{file}");
+        assert!(overrides.iter().any(|o| o == stage), "{file}: no {stage}");
     }
-    assert!(overrides.iter().any(|o| o == "WORKGROUP_SIZE"));
 }

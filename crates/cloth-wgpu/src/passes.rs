@@ -1,0 +1,338 @@
+//! The dispatches of one substep for each integrator: pipelines, bind groups, workgroup counts.
+//!
+//! | integrator | passes per substep |
+//! |---|---|
+//! | semi-implicit Euler | 1: `cloth_step.wgsl`, `STAGE = 0` |
+//! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
+//! | XPBD | `xpbd.wgsl`: predict; `XPBD_ITERATIONS` × (one per non-empty colour + spheres); finish |
+//!
+//! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
+//! buffer `1 − k`; each pass has one bind group per `k`.
+
+use cloth_core::coloring::COLOR_COUNT;
+use cloth_core::integrator::XPBD_ITERATIONS;
+use cloth_core::layout::{GpuBuffers, GpuColorRange, GpuSimParams};
+use cloth_core::{Effect, Integrator, Scene, SimError};
+use wgpu::util::DeviceExt;
+
+use crate::{BACKEND_NAME, STEP_SHADER, XPBD_SHADER};
+
+/// Invocations per workgroup of every kernel (the WGSL `WORKGROUP_SIZE` override).
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// The buffers every integrator's passes bind.
+pub(crate) struct StateBuffers {
+    pub params: wgpu::Buffer,
+    pub spheres: wgpu::Buffer,
+    pub positions: [wgpu::Buffer; 2],
+    pub velocities: [wgpu::Buffer; 2],
+    pub max_penetration: wgpu::Buffer,
+}
+
+/// One dispatch of a substep.
+pub(crate) struct Pass {
+    /// Index into [`SubstepPlan::pipelines`].
+    pub pipeline: usize,
+    /// The bind group when state buffer `k` is current.
+    pub groups: [wgpu::BindGroup; 2],
+    /// Workgroups along x and y.
+    pub workgroups: (u32, u32),
+    /// The dynamic offset of the layout's dynamic uniform, when it has one.
+    pub dynamic_offset: Option<u32>,
+}
+
+/// The dispatches of one substep, in order.
+pub(crate) struct SubstepPlan {
+    pub pipelines: Vec<wgpu::ComputePipeline>,
+    pub passes: Vec<Pass>,
+}
+
+/// What a binding of a kernel's bind group layout holds.
+#[derive(Clone, Copy)]
+enum Binding {
+    /// A uniform block of `size` bytes; `dynamic` when selected by a dynamic offset.
+    Uniform { size: u64, dynamic: bool },
+    /// A storage buffer.
+    Storage { read_only: bool },
+}
+
+fn bind_group_layout(device: &wgpu::Device, label: &str, bindings: &[Binding]) -> wgpu::BindGroupLayout {
+    let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
+        .iter()
+        .enumerate()
+        .map(|(binding, b)| wgpu::BindGroupLayoutEntry {
+            binding: binding as u32,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: match *b {
+                Binding::Uniform { size, dynamic } => wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: dynamic,
+                    min_binding_size: wgpu::BufferSize::new(size),
+                },
+                Binding::Storage { read_only } => wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+            },
+            count: None,
+        })
+        .collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
+}
+
+/// Workgroups for `items` invocations: along x up to the device's limit, the rest along y.
+pub(crate) fn workgroups(items: u32, max_x: u32) -> (u32, u32) {
+    let groups = items.div_ceil(WORKGROUP_SIZE).max(1);
+    let max_x = max_x.max(1);
+    if groups <= max_x { (groups, 1) } else { (max_x, groups.div_ceil(max_x)) }
+}
+
+/// A compiled kernel: its module's pipelines share one bind group layout.
+struct Kernel<'a> {
+    device: &'a wgpu::Device,
+    scene: &'a Scene,
+    module: wgpu::ShaderModule,
+    layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    entry_point: &'static str,
+    bindings: Vec<Binding>,
+}
+
+impl<'a> Kernel<'a> {
+    fn new(
+        device: &'a wgpu::Device,
+        scene: &'a Scene,
+        name: &'static str,
+        source: &'static str,
+        entry_point: &'static str,
+        bindings: &[Binding],
+    ) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(name),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let layout = bind_group_layout(device, &format!("{name} bind group layout"), bindings);
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(&format!("{name} pipeline layout")),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        Self { device, scene, module, layout, pipeline_layout, entry_point, bindings: bindings.to_vec() }
+    }
+
+    /// The pipeline with the scene's effects, the workgroup size and `(stage constant, value)`.
+    fn pipeline(&self, label: &str, stage: (&str, u32)) -> wgpu::ComputePipeline {
+        let mut constants: Vec<(&str, f64)> = self
+            .scene
+            .effects
+            .shader_constants()
+            .into_iter()
+            .map(|(name, on)| (name, if on { 1.0 } else { 0.0 }))
+            .collect();
+        constants.push(("WORKGROUP_SIZE", WORKGROUP_SIZE as f64));
+        constants.push((stage.0, stage.1 as f64));
+        self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&self.pipeline_layout),
+            module: &self.module,
+            entry_point: Some(self.entry_point),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
+            cache: None,
+        })
+    }
+
+    fn bind_group(&self, label: &str, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .zip(&self.bindings)
+            .enumerate()
+            .map(|(binding, (buffer, kind))| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer,
+                    offset: 0,
+                    // A dynamic uniform binds one block at a time; everything else whole.
+                    size: match *kind {
+                        Binding::Uniform { size, dynamic: true } => wgpu::BufferSize::new(size),
+                        _ => None,
+                    },
+                }),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+}
+
+/// Builds the passes of one substep of the scene's integrator.
+pub(crate) fn plan(
+    device: &wgpu::Device,
+    scene: &Scene,
+    data: &GpuBuffers,
+    state: &StateBuffers,
+) -> Result<SubstepPlan, SimError> {
+    let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
+    let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+    };
+    let max_x = device.limits().max_compute_workgroups_per_dimension;
+    let vertices = workgroups(data.positions.len() as u32, max_x);
+    let [p, v] = [&state.positions, &state.velocities];
+    let name = ["A", "B"];
+    match scene.integrator {
+        Integrator::SemiImplicitEuler | Integrator::VelocityVerlet => {
+            let ranges = init("cloth spring ranges", bytemuck::cast_slice(&data.spring_ranges), storage);
+            let ends = init("cloth spring ends", bytemuck::cast_slice(&data.spring_ends), storage);
+            let kernel = Kernel::new(
+                device,
+                scene,
+                "cloth_step.wgsl",
+                STEP_SHADER,
+                "substep",
+                &[
+                    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
+                    Binding::Storage { read_only: true },  // spheres
+                    Binding::Storage { read_only: true },  // spring ranges
+                    Binding::Storage { read_only: true },  // spring ends
+                    Binding::Storage { read_only: true },  // positions in
+                    Binding::Storage { read_only: true },  // velocities in
+                    Binding::Storage { read_only: false }, // positions out
+                    Binding::Storage { read_only: false }, // velocities out
+                    Binding::Storage { read_only: false }, // deepest penetration
+                ],
+            );
+            let group = |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4]| {
+                kernel.bind_group(
+                    &label,
+                    &[&state.params, &state.spheres, &ranges, &ends, x_in, v_in, x_out, v_out, &state.max_penetration],
+                )
+            };
+            if scene.integrator == Integrator::SemiImplicitEuler {
+                let groups = [0, 1].map(|k| {
+                    group(format!("cloth substep {} -> {}", name[k], name[1 - k]), [&p[k], &v[k], &p[1 - k], &v[1 - k]])
+                });
+                return Ok(SubstepPlan {
+                    pipelines: vec![kernel.pipeline("cloth Euler substep pipeline", ("STAGE", 0))],
+                    passes: vec![Pass { pipeline: 0, groups, workgroups: vertices, dynamic_offset: None }],
+                });
+            }
+            // Verlet's half-step velocities, and a sink for the positions its second kick does
+            // not write (a binding must not alias another of the same dispatch).
+            let v_half = init("cloth velocities (Verlet half step)", bytemuck::cast_slice(&data.velocities), storage);
+            let sink = init("cloth positions sink (Verlet second kick)", &[0u8; 16], storage);
+            let first = [0, 1].map(|k| {
+                group(
+                    format!("cloth Verlet kick and drift {} -> {}", name[k], name[1 - k]),
+                    [&p[k], &v[k], &p[1 - k], &v_half],
+                )
+            });
+            let second = [0, 1].map(|k| {
+                group(format!("cloth Verlet second kick -> {}", name[1 - k]), [&p[1 - k], &v_half, &sink, &v[1 - k]])
+            });
+            Ok(SubstepPlan {
+                pipelines: vec![
+                    kernel.pipeline("cloth Verlet kick and drift pipeline", ("STAGE", 1)),
+                    kernel.pipeline("cloth Verlet second kick pipeline", ("STAGE", 2)),
+                ],
+                passes: vec![
+                    Pass { pipeline: 0, groups: first, workgroups: vertices, dynamic_offset: None },
+                    Pass { pipeline: 1, groups: second, workgroups: vertices, dynamic_offset: None },
+                ],
+            })
+        }
+        Integrator::Xpbd => {
+            let storage_needed = 9;
+            if device.limits().max_storage_buffers_per_shader_stage < storage_needed {
+                return Err(SimError::Unsupported {
+                    backend: BACKEND_NAME,
+                    what: format!(
+                        "XPBD on this device: it binds {storage_needed} storage buffers, the device allows {}",
+                        device.limits().max_storage_buffers_per_shader_stage
+                    ),
+                    fix: "use a force-based integrator (SemiImplicitEuler, VelocityVerlet) or the cpu backend".into(),
+                });
+            }
+            let constraints = init("cloth XPBD constraints", bytemuck::cast_slice(&data.constraints), storage);
+            let lambdas = init("cloth XPBD multipliers", &vec![0u8; 4 * data.constraints.len()], storage);
+            let corrections = init("cloth XPBD normal corrections", &vec![0u8; 4 * data.positions.len()], storage);
+            let ranges = init(
+                "cloth XPBD colour ranges",
+                &data.color_ranges,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            );
+            let kernel = Kernel::new(
+                device,
+                scene,
+                "xpbd.wgsl",
+                XPBD_SHADER,
+                "xpbd",
+                &[
+                    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
+                    Binding::Storage { read_only: true },  // spheres
+                    Binding::Storage { read_only: true },  // constraints
+                    Binding::Storage { read_only: true },  // positions in
+                    Binding::Storage { read_only: true },  // velocities in
+                    Binding::Storage { read_only: false }, // positions out
+                    Binding::Storage { read_only: false }, // velocities out
+                    Binding::Storage { read_only: false }, // deepest penetration
+                    Binding::Storage { read_only: false }, // multipliers
+                    Binding::Storage { read_only: false }, // normal corrections
+                    Binding::Uniform { size: size_of::<GpuColorRange>() as u64, dynamic: true },
+                ],
+            );
+            let groups = [0, 1].map(|k| {
+                kernel.bind_group(
+                    &format!("cloth XPBD {} -> {}", name[k], name[1 - k]),
+                    &[
+                        &state.params,
+                        &state.spheres,
+                        &constraints,
+                        &p[k],
+                        &v[k],
+                        &p[1 - k],
+                        &v[1 - k],
+                        &state.max_penetration,
+                        &lambdas,
+                        &corrections,
+                        &ranges,
+                    ],
+                )
+            });
+            let pipelines = ["predict", "project one colour", "project the spheres", "finish"]
+                .iter()
+                .enumerate()
+                .map(|(pass, what)| kernel.pipeline(&format!("cloth XPBD {what} pipeline"), ("XPBD_PASS", pass as u32)))
+                .collect();
+            let pass = |pipeline: usize, workgroups: (u32, u32), offset: u32| Pass {
+                pipeline,
+                groups: groups.clone(),
+                workgroups,
+                dynamic_offset: Some(offset),
+            };
+            let mut passes = vec![pass(0, vertices, 0)];
+            let contact = scene.effects.contains(Effect::SphereContact) && data.params.sphere_count > 0;
+            for iteration in 0..XPBD_ITERATIONS {
+                for color in 0..COLOR_COUNT {
+                    let range = data.color_range(color, iteration);
+                    if range.count > 0 {
+                        passes.push(pass(1, workgroups(range.count, max_x), GpuColorRange::offset(color, iteration)));
+                    }
+                }
+                if contact {
+                    passes.push(pass(2, vertices, 0));
+                }
+            }
+            passes.push(pass(3, vertices, 0));
+            Ok(SubstepPlan { pipelines, passes })
+        }
+        other => Err(SimError::Unsupported {
+            backend: BACKEND_NAME,
+            what: format!("the {other:?} integrator"),
+            fix: "use the cpu backend, or integrator: SemiImplicitEuler, VelocityVerlet or Xpbd".into(),
+        }),
+    }
+}

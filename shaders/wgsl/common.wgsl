@@ -1,0 +1,148 @@
+// Shared by every WGSL compute kernel of the cloth (the backend prepends it to each): the
+// effect constants, the buffer structs and the force model.
+//
+// The force model mirrors crates/cloth-core/src/forces.rs function by function and operation by
+// operation (same names, same order of the sums), so that f32 results agree with the CPU
+// reference up to rounding. Units: m, kg, s, N/m, N·s/m.
+//
+// Effects the scene leaves out are compiled out: each EFFECT_* is a pipeline-overridable
+// constant set from cloth_core::EffectSet::shader_constants, and a branch on a false constant
+// is removed when the pipeline is built.
+
+override EFFECT_GRAVITY: bool = true;
+override EFFECT_STRUCTURAL: bool = true;
+override EFFECT_SHEAR: bool = true;
+override EFFECT_BEND: bool = true;
+override EFFECT_SPRING_DAMPING: bool = true;
+override EFFECT_CONTACT: bool = true;
+override EFFECT_FRICTION: bool = true;
+override EFFECT_AIR_DRAG: bool = false;
+override WORKGROUP_SIZE: u32 = 64u;
+
+// cloth_core::layout::GpuSimParams (80 bytes).
+struct SimParams {
+    gravity: vec4<f32>,      // m/s² (xyz)
+    stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
+    damping: vec4<f32>,      // N·s/m by spring kind
+    vertex_mass: f32,        // kg
+    substep_dt: f32,         // s
+    air_drag: f32,           // 1/s
+    vertex_count: u32,
+    sphere_count: u32,
+    grid_nx: u32,
+    grid_ny: u32,
+    effects: u32,
+}
+
+// cloth_core::layout::GpuSphere (32 bytes).
+struct Sphere {
+    center: vec3<f32>,       // m
+    radius: f32,             // m
+    stiffness: f32,          // k_c, N/m
+    friction: f32,           // c_f
+    damping: f32,            // N·s/m
+    pad: f32,
+}
+
+// cloth_core::layout::GpuSpringRange (8 bytes).
+struct SpringRange {
+    first: u32,
+    count: u32,
+}
+
+// cloth_core::layout::GpuSpringEnd (16 bytes).
+struct SpringEnd {
+    other: u32,
+    kind: u32,
+    rest_length: f32,        // m
+    pad: u32,
+}
+
+// cloth_core::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
+struct Constraint {
+    a: u32,
+    b: u32,
+    kind: u32,
+    rest_length: f32,        // m
+}
+
+// cloth_core::layout::GpuColorRange (16 bytes): the constraints of one XPBD colour.
+struct ColorRange {
+    first: u32,
+    count: u32,
+    first_iteration: u32,    // 1: the multipliers start from 0
+    pad: u32,
+}
+
+// Brief: F_g = m g.
+fn gravity_force(mass: f32, gravity: vec3<f32>) -> vec3<f32> {
+    return gravity * mass;
+}
+
+// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i.
+fn spring_force(x_i: vec3<f32>, x_j: vec3<f32>, v_i: vec3<f32>, v_j: vec3<f32>,
+                rest_length: f32, stiffness: f32, damping: f32) -> vec3<f32> {
+    let delta = x_j - x_i;
+    let len = sqrt(dot(delta, delta));
+    if (len <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let u = delta * (1.0 / len);
+    let extension_rate = dot(v_j - v_i, u);
+    return u * (stiffness * (len - rest_length) + damping * extension_rate);
+}
+
+// Linear air drag F = -m γ v (not in the brief).
+fn air_drag_force(mass: f32, rate: f32, v: vec3<f32>) -> vec3<f32> {
+    return v * (-(mass * rate));
+}
+
+struct Contact {
+    hit: bool,
+    normal: vec3<f32>,
+    force: vec3<f32>,
+}
+
+// Brief: F_c = k_c d, plus damping of the normal approach velocity.
+fn contact_force(x: vec3<f32>, v: vec3<f32>, s: Sphere) -> Contact {
+    var c: Contact;
+    let offset = x - s.center;
+    let distance = sqrt(dot(offset, offset));
+    let depth = s.radius - distance;
+    c.hit = depth > 0.0;
+    if (!c.hit) {
+        return c;
+    }
+    if (distance > 0.0) {
+        c.normal = offset * (1.0 / distance);
+    } else {
+        c.normal = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let approach = min(dot(v, c.normal), 0.0);
+    c.force = c.normal * (s.stiffness * depth - s.damping * approach);
+    return c;
+}
+
+// Brief: R_on = (R_o·1_n)1_n, R_ot = R_o - R_on, F_f = -min(|R_ot|, c_f |R_on|) 1_t,
+// with m v_t / Δt added to R_ot (see docs/model.md).
+fn friction_force(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
+                  mass: f32, dt: f32, coefficient: f32) -> vec3<f32> {
+    let r_on = normal * dot(other_forces, normal);
+    let r_ot = other_forces - r_on;
+    let v_t = v - normal * dot(v, normal);
+    let tangential = r_ot + v_t * (mass / dt);
+    let magnitude = sqrt(dot(tangential, tangential));
+    if (magnitude <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let limit = coefficient * sqrt(dot(r_on, r_on));
+    return tangential * (-(min(magnitude, limit) / magnitude));
+}
+
+fn kind_enabled(kind: u32) -> bool {
+    switch kind {
+        case 0u: { return EFFECT_STRUCTURAL; }
+        case 1u: { return EFFECT_SHEAR; }
+        default: { return EFFECT_BEND; }
+    }
+}

@@ -1,0 +1,199 @@
+// One XPBD substep (cloth_core::Integrator::Xpbd), as a sequence of passes. Prepended with
+// common.wgsl (constants, structs, force model).
+//
+// The projections mirror crates/cloth-core/src/constraints.rs function by function and operation
+// by operation. A substep is:
+//   pass 0 (per vertex)     predict: v* = v + Δt g (+ drag), x* = x + Δt v*; clear the normal corrections;
+//   then XPBD_ITERATIONS times:
+//     pass 1 (per spring)   project the springs of one colour (springs of a colour share no
+//                           vertex, so one invocation per spring needs no atomics), once per colour;
+//     pass 2 (per vertex)   project the vertex out of the spheres, summing the corrections;
+//   pass 3 (per vertex)     v = (x* − x)/Δt, friction on the contacts, deepest penetration.
+// Units: m, kg, s, N/m.
+
+// Which pass this pipeline runs (see above).
+override XPBD_PASS: u32 = 0u;
+
+@group(0) @binding(0) var<uniform> params: SimParams;
+@group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
+@group(0) @binding(2) var<storage, read> constraints: array<Constraint>;
+// The state at the substep's start (w: 1 free, 0 pinned).
+@group(0) @binding(3) var<storage, read> positions_in: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> velocities_in: array<vec4<f32>>;
+// The predicted positions, projected in place; then the new state.
+@group(0) @binding(5) var<storage, read_write> positions_out: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> velocities_out: array<vec4<f32>>;
+// Deepest penetration so far, m, as the bits of a non-negative f32 (see cloth_step.wgsl).
+@group(0) @binding(7) var<storage, read_write> max_penetration_bits: atomic<u32>;
+// Each spring's Lagrange multiplier λ (in constraint order).
+@group(0) @binding(8) var<storage, read_write> lambdas: array<f32>;
+// Each vertex's summed sphere correction in this substep, m.
+@group(0) @binding(9) var<storage, read_write> normal_corrections: array<f32>;
+// The colour pass 1 projects (selected by a dynamic offset).
+@group(0) @binding(10) var<uniform> color: ColorRange;
+
+struct SpringProjection {
+    x_a: vec3<f32>,
+    x_b: vec3<f32>,
+    lambda: f32,
+}
+
+// Δλ = (−C − α̃ λ) / (w_a + w_b + α̃), α̃ = 1/(k Δt²); the ends move by ±w Δλ n.
+fn project_spring(x_a: vec3<f32>, x_b: vec3<f32>, inverse_mass_a: f32, inverse_mass_b: f32,
+                  rest_length: f32, stiffness: f32, dt: f32, lambda: f32) -> SpringProjection {
+    var r = SpringProjection(x_a, x_b, lambda);
+    if (inverse_mass_a + inverse_mass_b <= 0.0 || stiffness <= 0.0) {
+        return r;
+    }
+    let d = x_a - x_b;
+    let length = sqrt(dot(d, d));
+    if (length <= 0.0) {
+        return r;
+    }
+    let n = d * (1.0 / length);
+    let compliance = 1.0 / (stiffness * dt * dt);
+    let delta_lambda = (-(length - rest_length) - compliance * lambda)
+        / (inverse_mass_a + inverse_mass_b + compliance);
+    r.lambda = lambda + delta_lambda;
+    r.x_a = x_a + n * (inverse_mass_a * delta_lambda);
+    r.x_b = x_b - n * (inverse_mass_b * delta_lambda);
+    return r;
+}
+
+struct SphereProjection {
+    x: vec3<f32>,
+    depth: f32,
+}
+
+// The non-penetration constraint |x − c| ≥ r: move x to the surface, return the correction.
+fn project_sphere(x: vec3<f32>, center: vec3<f32>, radius: f32) -> SphereProjection {
+    let offset = x - center;
+    let distance = sqrt(dot(offset, offset));
+    let depth = radius - distance;
+    if (depth > 0.0 && distance > 0.0) {
+        return SphereProjection(x + offset * (depth / distance), depth);
+    }
+    return SphereProjection(x, 0.0);
+}
+
+// Coulomb friction in position form: the tangential velocity loses at most c_f times the normal
+// correction's velocity, and stops when that suffices.
+fn contact_friction(v: vec3<f32>, x: vec3<f32>, center: vec3<f32>, radius: f32,
+                    coefficient: f32, normal_correction: f32, dt: f32) -> vec3<f32> {
+    let offset = x - center;
+    let distance = sqrt(dot(offset, offset));
+    if (distance <= 0.0 || distance > radius * 1.000001) {
+        return v;
+    }
+    let n = offset * (1.0 / distance);
+    let v_t = v - n * dot(v, n);
+    let speed = sqrt(dot(v_t, v_t));
+    let budget = coefficient * normal_correction * (1.0 / dt);
+    if (speed > 0.0) {
+        return v - v_t * (min(speed, budget) / speed);
+    }
+    return v;
+}
+
+fn predict(i: u32) {
+    let p = positions_in[i];
+    var x = p.xyz;
+    if (p.w != 0.0) {
+        let h = params.substep_dt;
+        let m = params.vertex_mass;
+        var v = velocities_in[i].xyz;
+        if (EFFECT_GRAVITY) {
+            v += params.gravity.xyz * h;
+        }
+        if (EFFECT_AIR_DRAG) {
+            v += air_drag_force(m, params.air_drag, v) * (h / m);
+        }
+        x = x + v * h;
+    }
+    positions_out[i] = vec4<f32>(x, p.w);
+    normal_corrections[i] = 0.0;
+}
+
+fn project_color(t: u32) {
+    if (t >= color.count) {
+        return;
+    }
+    let c = color.first + t;
+    let s = constraints[c];
+    if (!kind_enabled(s.kind)) {
+        return;
+    }
+    let pa = positions_out[s.a];
+    let pb = positions_out[s.b];
+    let w = 1.0 / params.vertex_mass;
+    var lambda = lambdas[c];
+    if (color.first_iteration != 0u) {
+        lambda = 0.0;
+    }
+    let r = project_spring(pa.xyz, pb.xyz, pa.w * w, pb.w * w, s.rest_length, params.stiffness[s.kind],
+                           params.substep_dt, lambda);
+    lambdas[c] = r.lambda;
+    positions_out[s.a] = vec4<f32>(r.x_a, pa.w);
+    positions_out[s.b] = vec4<f32>(r.x_b, pb.w);
+}
+
+fn project_spheres(i: u32) {
+    let p = positions_out[i];
+    if (p.w == 0.0) {
+        return;
+    }
+    var x = p.xyz;
+    var correction = normal_corrections[i];
+    for (var s = 0u; s < params.sphere_count; s++) {
+        let r = project_sphere(x, spheres[s].center, spheres[s].radius);
+        x = r.x;
+        correction = correction + r.depth;
+    }
+    positions_out[i] = vec4<f32>(x, p.w);
+    normal_corrections[i] = correction;
+}
+
+fn finish(i: u32) {
+    let p = positions_out[i];
+    var v = vec3<f32>(0.0);
+    if (p.w != 0.0) {
+        let h = params.substep_dt;
+        v = (p.xyz - positions_in[i].xyz) * (1.0 / h);
+        let correction = normal_corrections[i];
+        if (EFFECT_FRICTION && correction > 0.0) {
+            for (var s = 0u; s < params.sphere_count; s++) {
+                v = contact_friction(v, p.xyz, spheres[s].center, spheres[s].radius, spheres[s].friction,
+                                     correction, h);
+            }
+        }
+    }
+    velocities_out[i] = vec4<f32>(v, 0.0);
+    if (EFFECT_CONTACT) {
+        var deepest = 0.0;
+        for (var s = 0u; s < params.sphere_count; s++) {
+            let offset = p.xyz - spheres[s].center;
+            deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+        }
+        if (deepest > 0.0) {
+            atomicMax(&max_penetration_bits, bitcast<u32>(deepest));
+        }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    // 2D dispatch: more than 65535 workgroups spill into y.
+    let t = id.y * groups.x * WORKGROUP_SIZE + id.x;
+    if (XPBD_PASS == 1u) {
+        project_color(t);
+        return;
+    }
+    if (t >= params.vertex_count) {
+        return;
+    }
+    switch XPBD_PASS {
+        case 0u: { predict(t); }
+        case 2u: { project_spheres(t); }
+        default: { finish(t); }
+    }
+}
