@@ -15,22 +15,24 @@ fn main() {
         println!("cargo:rerun-if-changed={}", path.display());
     }
     println!("cargo:rerun-if-env-changed=GLSLC");
-    let status = Command::new(&glslc)
-        // No -O: the driver optimises the SPIR-V anyway, and the unoptimised module keeps the
-        // struct and constant names the layout test reflects on.
-        .args(["--target-env=vulkan1.1", "-I"])
-        .arg(&glsl)
-        .arg(glsl.join("cloth_step.comp"))
-        .arg("-o")
-        .arg(out.join("cloth_step.spv"))
-        .status();
-    match status {
-        Ok(s) if s.success() => {}
-        Ok(s) => panic!("glslc failed ({s}) compiling shaders/glsl/cloth_step.comp: see its message above"),
-        Err(e) => panic!(
-            "cannot run `{glslc}` ({e}): the vulkano backend compiles its GLSL shaders with glslc. \
-             Install it with `apt-get install glslc` (or run `cargo xtask setup`), or point the GLSLC \
-             environment variable at a glslc binary."
-        ),
+    for kernel in ["cloth_step", "xpbd"] {
+        let status = Command::new(&glslc)
+            // No -O: the driver optimises the SPIR-V anyway, and the unoptimised module keeps the
+            // struct and constant names the layout test reflects on.
+            .args(["--target-env=vulkan1.1", "-I"])
+            .arg(&glsl)
+            .arg(glsl.join(format!("{kernel}.comp")))
+            .arg("-o")
+            .arg(out.join(format!("{kernel}.spv")))
+            .status();
+        match status {
+            Ok(s) if s.success() => {}
+            Ok(s) => panic!("glslc failed ({s}) compiling shaders/glsl/{kernel}.comp: see its message above"),
+            Err(e) => panic!(
+                "cannot run `{glslc}` ({e}): the vulkano backend compiles its GLSL shaders with glslc. \
+                 Install it with `apt-get install glslc` (or run `cargo xtask setup`), or point the GLSLC \
+                 environment variable at a glslc binary."
+            ),
+        }
     }
 }

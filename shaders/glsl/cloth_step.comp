@@ -1,22 +1,12 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 
-// One substep of the mass-spring cloth: one invocation per vertex.
-//
-// Effects the scene leaves out are compiled out: each EFFECT_* is a specialization constant
-// (ids in cloth_core::Effect::ALL order) set from cloth_core::EffectSet::shader_constants, and
-// the driver removes the code behind a false constant. The workgroup size is one too (id 8).
+// One substep of the mass-spring cloth under a force-based integrator (semi-implicit Euler,
+// velocity Verlet): one invocation per vertex. Effects the scene leaves out are compiled out
+// (effects.glsl).
 
-layout(constant_id = 0) const bool EFFECT_GRAVITY = true;
-layout(constant_id = 1) const bool EFFECT_STRUCTURAL = true;
-layout(constant_id = 2) const bool EFFECT_SHEAR = true;
-layout(constant_id = 3) const bool EFFECT_BEND = true;
-layout(constant_id = 4) const bool EFFECT_SPRING_DAMPING = true;
-layout(constant_id = 5) const bool EFFECT_CONTACT = true;
-layout(constant_id = 6) const bool EFFECT_FRICTION = true;
-layout(constant_id = 7) const bool EFFECT_AIR_DRAG = false;
-// local_size_x is the default; local_size_x_id makes it specializable (id 8).
-layout(local_size_x = 64, local_size_x_id = 8) in;
+#include "effects.glsl"
+
 // Which integration stage this pipeline runs: 0 semi-implicit Euler (the brief's); 1 and 2 the
 // two halves of velocity Verlet: 1 = kick and drift (v½ = v + ½Δt F(x, v)/m, x' = x + Δt v½),
 // 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched).
@@ -25,11 +15,15 @@ layout(constant_id = 9) const uint STAGE = 0u;
 #include "layout.glsl"
 #include "forces.glsl"
 
-bool kind_enabled(uint kind) {
-    if (kind == 0u) return EFFECT_STRUCTURAL;
-    if (kind == 1u) return EFFECT_SHEAR;
-    return EFFECT_BEND;
-}
+layout(set = 0, binding = 2, std430) readonly buffer SpringRanges { SpringRange spring_ranges[]; };
+layout(set = 0, binding = 3, std430) readonly buffer SpringEnds { SpringEnd spring_ends[]; };
+layout(set = 0, binding = 4, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, 0 pinned
+layout(set = 0, binding = 5, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };
+layout(set = 0, binding = 6, std430) buffer PositionsOut { vec4 positions_out[]; };
+layout(set = 0, binding = 7, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
+// Deepest penetration so far, m, as the bits of a non-negative float (their order as uints is
+// their order as floats, so atomicMax on uint is max on float).
+layout(set = 0, binding = 8, std430) buffer MaxPenetration { uint max_penetration_bits; };
 
 void main() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.

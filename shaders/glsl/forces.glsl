@@ -54,3 +54,10 @@ vec3 friction_force(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt
     float limit = coefficient * sqrt(dot(r_on, r_on));
     return tangential * (-(min(magnitude, limit) / magnitude));
 }
+
+// Whether springs of this kind are simulated (a specialization constant per kind).
+bool kind_enabled(uint kind) {
+    if (kind == 0u) return EFFECT_STRUCTURAL;
+    if (kind == 1u) return EFFECT_SHEAR;
+    return EFFECT_BEND;
+}

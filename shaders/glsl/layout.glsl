@@ -1,5 +1,6 @@
-// Buffer layouts and bindings of the substep kernel: the GLSL view of
-// crates/cloth-core/src/layout.rs (checked by crates/cloth-vulkano/tests/layout.rs).
+// Buffer layouts shared by every kernel: the GLSL view of crates/cloth-core/src/layout.rs
+// (checked by crates/cloth-vulkano/tests/layout.rs), with the two bindings all kernels share
+// (0: parameters, 1: spheres). Each kernel declares its other bindings.
 
 // cloth_core::layout::GpuSimParams (80 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
@@ -40,13 +41,13 @@ struct SpringEnd {
     uint pad;
 };
 
+// cloth_core::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
+struct Constraint {
+    uint a;
+    uint b;
+    uint kind;
+    float rest_length;  // m
+};
+
+// The bindings every kernel shares: the parameters and the spheres.
 layout(set = 0, binding = 1, std430) readonly buffer Spheres { Sphere spheres[]; };
-layout(set = 0, binding = 2, std430) readonly buffer SpringRanges { SpringRange spring_ranges[]; };
-layout(set = 0, binding = 3, std430) readonly buffer SpringEnds { SpringEnd spring_ends[]; };
-layout(set = 0, binding = 4, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, 0 pinned
-layout(set = 0, binding = 5, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };
-layout(set = 0, binding = 6, std430) buffer PositionsOut { vec4 positions_out[]; };
-layout(set = 0, binding = 7, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
-// Deepest penetration so far, m, as the bits of a non-negative float (their order as uints is
-// their order as floats, so atomicMax on uint is max on float).
-layout(set = 0, binding = 8, std430) buffer MaxPenetration { uint max_penetration_bits; };

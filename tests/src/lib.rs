@@ -62,6 +62,16 @@ pub const EXPECTED_DIFFERENCES: &[ExpectedDifference] = &[
                  high-precision oracle, so its results differ from the f32 ones in the last bits",
     },
     ExpectedDifference {
+        backend: "cpu-f64",
+        adapter_contains: "",
+        case: "xpbd_matches_the_reference_on_a_short_horizon",
+        symptom: "XPBD differs from the f32 reference",
+        reason: "XPBD's corrections near convergence are below f32's resolution of the positions, so \
+                 the f32 and f64 runs differ by rounding from the first substep, and the landing's \
+                 buckling (a bifurcation) amplifies that to about a millimetre; the case checks that \
+                 the GPU kernels compute what the f32 reference computes",
+    },
+    ExpectedDifference {
         backend: "vulkano",
         adapter_contains: "NVIDIA",
         case: "bit_exact_with_the_f32_reference",

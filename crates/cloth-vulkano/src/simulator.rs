@@ -9,55 +9,36 @@ use vulkano::buffer::{Buffer, BufferContents, BufferCreateInfo, BufferUsage, Sub
 use vulkano::command_buffer::allocator::StandardCommandBufferAllocator;
 use vulkano::command_buffer::{AutoCommandBufferBuilder, CommandBufferUsage, CopyBufferInfo, PrimaryAutoCommandBuffer};
 use vulkano::descriptor_set::allocator::StandardDescriptorSetAllocator;
-use vulkano::descriptor_set::{DescriptorSet, WriteDescriptorSet};
 use vulkano::memory::allocator::{AllocationCreateInfo, MemoryTypeFilter, StandardMemoryAllocator};
-use vulkano::pipeline::compute::ComputePipelineCreateInfo;
-use vulkano::pipeline::layout::PipelineDescriptorSetLayoutCreateInfo;
-use vulkano::pipeline::{ComputePipeline, Pipeline, PipelineBindPoint, PipelineLayout, PipelineShaderStageCreateInfo};
-use vulkano::shader::{ShaderModule, ShaderModuleCreateInfo, SpecializationConstant};
+use vulkano::pipeline::{Pipeline, PipelineBindPoint};
 use vulkano::sync::GpuFuture;
 use vulkano::sync::future::FenceSignalFuture;
 
+use crate::BACKEND_NAME;
 use crate::context::VulkanContext;
-use crate::{BACKEND_NAME, STEP_SPIRV};
-
-/// Invocations per workgroup (specialization constant [`WORKGROUP_SIZE_CONSTANT_ID`]).
-pub const WORKGROUP_SIZE: u32 = 64;
-/// Specialization-constant id of the workgroup size; ids `0..8` are the effects, in
-/// `cloth_core::Effect::ALL` order.
-pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 8;
-/// Specialization-constant id of the integration stage (0 Euler, 1 and 2 the Verlet halves).
-pub const STAGE_CONSTANT_ID: u32 = 9;
-
-/// One dispatch of a substep: its pipeline and, for each current state buffer `k`, its set.
-struct Stage {
-    pipeline: Arc<ComputePipeline>,
-    sets: [Arc<DescriptorSet>; 2],
-}
-
-type State = Subbuffer<[[f32; 4]]>;
+use crate::passes::{StateBuffers, SubstepPlan};
+use crate::timer::GpuTimer;
 
 /// The cloth simulated by GLSL compute shaders (SPIR-V) through vulkano.
 pub struct VulkanoSimulator {
     context: VulkanContext,
     scene: Scene,
-    /// The dispatches of one substep (one for Euler, two for Verlet); a substep leaves the new
-    /// state in buffer `1 - k` when `k` is current.
-    stages: Vec<Stage>,
-    params: Subbuffer<GpuSimParams>,
-    spheres: Subbuffer<[GpuSphere]>,
-    positions: [State; 2],
-    velocities: [State; 2],
-    max_penetration: Subbuffer<[u32]>,
+    /// The dispatches of one substep (see `passes.rs`); a substep leaves the new state in buffer
+    /// `1 - k` when `k` is current.
+    plan: SubstepPlan,
+    buffers: StateBuffers,
     memory: Arc<StandardMemoryAllocator>,
     commands: Arc<StandardCommandBufferAllocator>,
     /// The last submission, if not yet waited for.
     in_flight: Option<FenceSignalFuture<Box<dyn GpuFuture>>>,
     /// Parameters to write at the start of the next command buffer.
     pending_parameters: Option<(GpuSimParams, Vec<GpuSphere>)>,
+    /// GPU time of each advance, when the queue has timestamps.
+    timer: Option<GpuTimer>,
+    /// GPU seconds already read from a full timer and not yet taken.
+    timed_seconds: f64,
     current: usize,
     free: Vec<f32>,
-    workgroups: [u32; 3],
     time_s: f64,
     substeps_run: u64,
     last_advance: AdvanceCounts,
@@ -81,8 +62,9 @@ impl VulkanoSimulator {
     /// Creates the simulator on an open device.
     ///
     /// # Errors
-    /// [`SimError::TooLarge`] beyond `maxStorageBufferRange`, [`SimError::Device`] when creating
-    /// the GPU objects fails.
+    /// [`SimError::TooLarge`] beyond `maxStorageBufferRange`, [`SimError::Unsupported`] for an
+    /// integrator this backend does not run, [`SimError::Device`] when creating the GPU objects
+    /// fails.
     pub fn on_context(scene: &Scene, context: VulkanContext) -> Result<Self, SimError> {
         scene.validate()?;
         SimError::require_gpu_integrator(BACKEND_NAME, scene)?;
@@ -106,39 +88,6 @@ impl VulkanoSimulator {
         let commands = Arc::new(StandardCommandBufferAllocator::new(device.clone(), Default::default()));
         let descriptors = Arc::new(StandardDescriptorSetAllocator::new(device.clone(), Default::default()));
 
-        let words = vulkano::shader::spirv::bytes_to_words(STEP_SPIRV).map_err(device_error)?;
-        // SAFETY: the SPIR-V comes from glslc, which emits valid modules for Vulkan 1.1.
-        let module = unsafe { ShaderModule::new(device.clone(), ShaderModuleCreateInfo::new(&words)) }
-            .map_err(|e| device_error(format!("loading the SPIR-V: {e}")))?;
-        let pipeline = |stage: u32| -> Result<Arc<ComputePipeline>, SimError> {
-            let constants = scene
-                .effects
-                .shader_constants()
-                .into_iter()
-                .enumerate()
-                .map(|(id, (_, on))| (id as u32, SpecializationConstant::Bool(on)))
-                .chain([
-                    (WORKGROUP_SIZE_CONSTANT_ID, SpecializationConstant::U32(WORKGROUP_SIZE)),
-                    (STAGE_CONSTANT_ID, SpecializationConstant::U32(stage)),
-                ])
-                .collect();
-            let entry = module
-                .specialize(constants)
-                .map_err(|e| device_error(format!("specializing the shader: {e}")))?
-                .entry_point("main")
-                .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
-            let stage = PipelineShaderStageCreateInfo::new(entry);
-            let layout = PipelineLayout::new(
-                device.clone(),
-                PipelineDescriptorSetLayoutCreateInfo::from_stages([&stage])
-                    .into_pipeline_layout_create_info(device.clone())
-                    .map_err(|e| device_error(format!("pipeline layout: {e:?}")))?,
-            )
-            .map_err(|e| device_error(format!("pipeline layout: {e}")))?;
-            ComputePipeline::new(device.clone(), None, ComputePipelineCreateInfo::stage_layout(stage, layout))
-                .map_err(|e| device_error(format!("compute pipeline: {e}")))
-        };
-
         let storage = BufferUsage::STORAGE_BUFFER | BufferUsage::TRANSFER_DST | BufferUsage::TRANSFER_SRC;
         let device_local = |usage: BufferUsage, bytes: u64| -> Result<Subbuffer<[u8]>, SimError> {
             Buffer::new_slice::<u8>(
@@ -149,90 +98,37 @@ impl VulkanoSimulator {
             )
             .map_err(|e| device_error(format!("allocating {bytes} bytes of device memory: {e}")))
         };
-        let params: Subbuffer<GpuSimParams> =
-            device_local(BufferUsage::UNIFORM_BUFFER | BufferUsage::TRANSFER_DST, size_of::<GpuSimParams>() as u64)?
-                .reinterpret();
-        let spheres: Subbuffer<[GpuSphere]> = device_local(storage, bytes_of_slice(&data.spheres))?.reinterpret();
-        let ranges = device_local(storage, bytes_of_slice(&data.spring_ranges))?;
-        let ends = device_local(storage, bytes_of_slice(&data.spring_ends))?;
         let state_bytes = bytes_of_slice(&data.positions);
-        let positions: [State; 2] =
-            [device_local(storage, state_bytes)?.reinterpret(), device_local(storage, state_bytes)?.reinterpret()];
-        let velocities: [State; 2] =
-            [device_local(storage, state_bytes)?.reinterpret(), device_local(storage, state_bytes)?.reinterpret()];
-        let max_penetration: Subbuffer<[u32]> = device_local(storage, 4)?.reinterpret();
-
-        let verlet = scene.integrator == cloth_core::Integrator::VelocityVerlet;
-        let set = |pipeline: &Arc<ComputePipeline>, [x_in, v_in, x_out, v_out]: [&State; 4]| {
-            DescriptorSet::new(
-                descriptors.clone(),
-                pipeline.layout().set_layouts()[0].clone(),
-                [
-                    WriteDescriptorSet::buffer(0, params.clone()),
-                    WriteDescriptorSet::buffer(1, spheres.clone()),
-                    WriteDescriptorSet::buffer(2, ranges.clone()),
-                    WriteDescriptorSet::buffer(3, ends.clone()),
-                    WriteDescriptorSet::buffer(4, x_in.clone()),
-                    WriteDescriptorSet::buffer(5, v_in.clone()),
-                    WriteDescriptorSet::buffer(6, x_out.clone()),
-                    WriteDescriptorSet::buffer(7, v_out.clone()),
-                    WriteDescriptorSet::buffer(8, max_penetration.clone()),
-                ],
-                [],
-            )
-            .map_err(|e| device_error(format!("descriptor set: {e}")))
+        let buffers = StateBuffers {
+            params: device_local(
+                BufferUsage::UNIFORM_BUFFER | BufferUsage::TRANSFER_DST,
+                size_of::<GpuSimParams>() as u64,
+            )?
+            .reinterpret(),
+            spheres: device_local(storage, bytes_of_slice(&data.spheres))?.reinterpret(),
+            positions: [
+                device_local(storage, state_bytes)?.reinterpret(),
+                device_local(storage, state_bytes)?.reinterpret(),
+            ],
+            velocities: [
+                device_local(storage, state_bytes)?.reinterpret(),
+                device_local(storage, state_bytes)?.reinterpret(),
+            ],
+            max_penetration: device_local(storage, 4)?.reinterpret(),
         };
-        let mut stages = Vec::new();
-        if verlet {
-            // Verlet's half-step velocities, and a sink for the positions its second kick does not
-            // write.
-            let v_half: State = device_local(storage, state_bytes)?.reinterpret();
-            let sink: State = device_local(storage, 16)?.reinterpret();
-            let first = pipeline(1)?;
-            let second = pipeline(2)?;
-            stages.push(Stage {
-                sets: [
-                    set(&first, [&positions[0], &velocities[0], &positions[1], &v_half])?,
-                    set(&first, [&positions[1], &velocities[1], &positions[0], &v_half])?,
-                ],
-                pipeline: first,
-            });
-            stages.push(Stage {
-                sets: [
-                    set(&second, [&positions[1], &v_half, &sink, &velocities[1]])?,
-                    set(&second, [&positions[0], &v_half, &sink, &velocities[0]])?,
-                ],
-                pipeline: second,
-            });
-        } else {
-            let euler = pipeline(0)?;
-            stages.push(Stage {
-                sets: [
-                    set(&euler, [&positions[0], &velocities[0], &positions[1], &velocities[1]])?,
-                    set(&euler, [&positions[1], &velocities[1], &positions[0], &velocities[0]])?,
-                ],
-                pipeline: euler,
-            });
-        }
-
-        let groups = (data.positions.len() as u32).div_ceil(WORKGROUP_SIZE);
-        let max_x = properties.max_compute_work_group_count[0].max(1);
-        let workgroups = if groups <= max_x { [groups, 1, 1] } else { [max_x, groups.div_ceil(max_x), 1] };
+        let plan = crate::passes::plan(&device, scene, &data, &buffers, &descriptors, &device_local)?;
         let mut sim = Self {
             free: data.positions.iter().map(|p| p[3]).collect(),
             scene: scene.clone(),
-            stages,
-            params,
-            spheres,
-            positions,
-            velocities,
-            max_penetration,
+            plan,
+            buffers,
             memory,
             commands,
             in_flight: None,
             pending_parameters: None,
+            timer: GpuTimer::new(&context.queue),
+            timed_seconds: 0.0,
             current: 0,
-            workgroups,
             time_s: 0.0,
             substeps_run: 0,
             last_advance: AdvanceCounts::default(),
@@ -240,15 +136,16 @@ impl VulkanoSimulator {
         };
         // Initial upload: one command buffer of copies from host-visible staging buffers.
         let mut builder = sim.builder()?;
-        sim.copy_in(&mut builder, &[data.params], sim.params.clone().into_bytes())?;
-        sim.copy_in(&mut builder, &data.spheres, sim.spheres.clone().into_bytes())?;
-        sim.copy_in(&mut builder, &data.spring_ranges, ranges.clone())?;
-        sim.copy_in(&mut builder, &data.spring_ends, ends.clone())?;
+        sim.copy_in(&mut builder, &[data.params], sim.buffers.params.clone().into_bytes())?;
+        sim.copy_in(&mut builder, &data.spheres, sim.buffers.spheres.clone().into_bytes())?;
         for k in 0..2 {
-            sim.copy_in(&mut builder, &data.positions, sim.positions[k].clone().into_bytes())?;
-            sim.copy_in(&mut builder, &data.velocities, sim.velocities[k].clone().into_bytes())?;
+            sim.copy_in(&mut builder, &data.positions, sim.buffers.positions[k].clone().into_bytes())?;
+            sim.copy_in(&mut builder, &data.velocities, sim.buffers.velocities[k].clone().into_bytes())?;
         }
-        sim.copy_in(&mut builder, &[0u32], sim.max_penetration.clone().into_bytes())?;
+        sim.copy_in(&mut builder, &[0u32], sim.buffers.max_penetration.clone().into_bytes())?;
+        for (buffer, bytes) in std::mem::take(&mut sim.plan.uploads) {
+            sim.copy_in(&mut builder, &bytes, buffer)?;
+        }
         let cb = builder.build().map_err(|e| device_error(format!("recording the upload: {e}")))?;
         sim.submit(cb)?;
         sim.context.check_validation()?;
@@ -357,6 +254,20 @@ impl VulkanoSimulator {
     }
 }
 
+impl VulkanoSimulator {
+    /// Waits for the device and adds the timer's pending pairs to `timed_seconds`.
+    fn read_timer(&mut self) -> Result<(), SimError> {
+        if self.timer.is_none() {
+            return Ok(());
+        }
+        self.wait()?;
+        if let Some(timer) = &mut self.timer {
+            self.timed_seconds += timer.take().map_err(device_error)?;
+        }
+        Ok(())
+    }
+}
+
 fn bytes_of_slice<T>(data: &[T]) -> u64 {
     std::mem::size_of_val(data) as u64
 }
@@ -386,36 +297,56 @@ impl Simulator for VulkanoSimulator {
         if substeps == 0 {
             return Ok(());
         }
+        if self.timer.as_ref().is_some_and(GpuTimer::is_full) {
+            // Only after 256 advances without `take_gpu_seconds`: keep the measurements.
+            self.read_timer()?;
+            self.last_advance.host_waits = 1;
+        }
         let mut builder = self.builder()?;
         if let Some((params, spheres)) = self.pending_parameters.take() {
             builder
-                .update_buffer(self.params.clone(), Box::new(params))
+                .update_buffer(self.buffers.params.clone(), Box::new(params))
                 .map_err(|e| device_error(format!("parameters: {e}")))?;
             if !spheres.is_empty() {
-                let dst = self.spheres.clone().slice(0..spheres.len() as u64);
+                let dst = self.buffers.spheres.clone().slice(0..spheres.len() as u64);
                 builder
                     .update_buffer(dst, spheres.into_boxed_slice())
                     .map_err(|e| device_error(format!("spheres: {e}")))?;
             }
         }
+        if let Some(timer) = &self.timer {
+            timer.begin(&mut builder).map_err(device_error)?;
+        }
+        let mut bound = None;
         for _ in 0..substeps {
-            for stage in &self.stages {
-                builder
-                    .bind_pipeline_compute(stage.pipeline.clone())
-                    .map_err(|e| device_error(format!("binding: {e}")))?
-                    .bind_descriptor_sets(
+            for pass in &self.plan.passes {
+                let pipeline = &self.plan.pipelines[pass.pipeline];
+                if bound != Some(pass.pipeline) {
+                    builder
+                        .bind_pipeline_compute(pipeline.clone())
+                        .map_err(|e| device_error(format!("binding: {e}")))?;
+                    bound = Some(pass.pipeline);
+                }
+                let set = pass.sets[self.current].clone();
+                match pass.dynamic_offset {
+                    Some(offset) => builder.bind_descriptor_sets(
                         PipelineBindPoint::Compute,
-                        stage.pipeline.layout().clone(),
+                        pipeline.layout().clone(),
                         0,
-                        stage.sets[self.current].clone(),
-                    )
-                    .map_err(|e| device_error(format!("binding: {e}")))?;
-                // SAFETY: the shader bounds-checks its invocation index against
-                // params.vertex_count, and every buffer it indexes holds vertex_count (or its
-                // spring-range) elements.
-                unsafe { builder.dispatch(self.workgroups) }.map_err(|e| device_error(format!("dispatch: {e}")))?;
+                        set.offsets([offset]),
+                    ),
+                    None => builder.bind_descriptor_sets(PipelineBindPoint::Compute, pipeline.layout().clone(), 0, set),
+                }
+                .map_err(|e| device_error(format!("binding: {e}")))?;
+                // SAFETY: every kernel bounds-checks its invocation index (against the vertex
+                // count, or the colour's constraint count), and every buffer it indexes holds that
+                // many elements.
+                unsafe { builder.dispatch(pass.workgroups) }.map_err(|e| device_error(format!("dispatch: {e}")))?;
             }
             self.current = 1 - self.current;
+        }
+        if let Some(timer) = &mut self.timer {
+            timer.end(&mut builder).map_err(device_error)?;
         }
         let cb = builder.build().map_err(|e| device_error(format!("recording the frame: {e}")))?;
         self.submit(cb)?;
@@ -444,8 +375,10 @@ impl Simulator for VulkanoSimulator {
     }
 
     fn read_state(&mut self) -> Result<ClothState, SimError> {
-        let sources =
-            [self.positions[self.current].clone().into_bytes(), self.velocities[self.current].clone().into_bytes()];
+        let sources = [
+            self.buffers.positions[self.current].clone().into_bytes(),
+            self.buffers.velocities[self.current].clone().into_bytes(),
+        ];
         let bytes = self.read_back(&sources)?;
         let xyz = |b: &[u8]| bytemuck::cast_slice::<u8, [f32; 4]>(b).iter().map(|q| [q[0], q[1], q[2]]).collect();
         Ok(ClothState { time_s: self.time_s, positions: xyz(&bytes[0]), velocities: xyz(&bytes[1]) })
@@ -457,8 +390,8 @@ impl Simulator for VulkanoSimulator {
             state.positions.iter().zip(&self.free).map(|(p, &w)| [p[0], p[1], p[2], w]).collect();
         let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
         let mut builder = self.builder()?;
-        self.copy_in(&mut builder, &positions, self.positions[self.current].clone().into_bytes())?;
-        self.copy_in(&mut builder, &velocities, self.velocities[self.current].clone().into_bytes())?;
+        self.copy_in(&mut builder, &positions, self.buffers.positions[self.current].clone().into_bytes())?;
+        self.copy_in(&mut builder, &velocities, self.buffers.velocities[self.current].clone().into_bytes())?;
         let cb = builder.build().map_err(|e| device_error(format!("recording the upload: {e}")))?;
         self.submit(cb)?;
         self.time_s = state.time_s;
@@ -466,12 +399,20 @@ impl Simulator for VulkanoSimulator {
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
-        let bytes = self.read_back(&[self.max_penetration.clone().into_bytes()])?;
+        let bytes = self.read_back(&[self.buffers.max_penetration.clone().into_bytes()])?;
         let bits = u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]);
         Ok(Diagnostics { max_penetration_m: f32::from_bits(bits) as f64, substeps_run: self.substeps_run })
     }
 
     fn last_advance_counts(&self) -> AdvanceCounts {
         self.last_advance
+    }
+
+    fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {
+        if self.timer.is_none() {
+            return Ok(None);
+        }
+        self.read_timer()?;
+        Ok(Some(std::mem::take(&mut self.timed_seconds)))
     }
 }

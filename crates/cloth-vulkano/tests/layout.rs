@@ -28,9 +28,12 @@ fn string(words: &[u32]) -> String {
     String::from_utf8_lossy(&bytes).into_owned()
 }
 
-fn reflect() -> Reflection {
-    let words: Vec<u32> =
-        cloth_vulkano::STEP_SPIRV.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+/// The kernels' SPIR-V modules, by file name.
+const MODULES: [(&str, &[u8]); 2] =
+    [("cloth_step.spv", cloth_vulkano::STEP_SPIRV), ("xpbd.spv", cloth_vulkano::XPBD_SPIRV)];
+
+fn reflect(spirv: &[u8]) -> Reflection {
+    let words: Vec<u32> = spirv.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
     assert_eq!(words[0], 0x0723_0203, "SPIR-V magic number");
     let mut r = Reflection::default();
     let mut i = 5;
@@ -61,9 +64,19 @@ fn reflect() -> Reflection {
 }
 
 /// `(member name, offset)` of the laid-out struct whose first member is `first_member`, and its array
-/// stride (its size) if it is the element of a runtime array.
+/// stride (its size) if it is the element of a runtime array, from the first module that has it.
 fn spirv_struct(first_member: &str, member_count: usize) -> (Vec<(String, u32)>, Option<u32>) {
-    let r = reflect();
+    MODULES
+        .iter()
+        .find_map(|(_, spirv)| spirv_struct_in(&reflect(spirv), first_member, member_count))
+        .unwrap_or_else(|| panic!("no struct starting with member {first_member} in any kernel"))
+}
+
+fn spirv_struct_in(
+    r: &Reflection,
+    first_member: &str,
+    member_count: usize,
+) -> Option<(Vec<(String, u32)>, Option<u32>)> {
     for id in &r.structs {
         let mut names = r.member_names.get(id).cloned().unwrap_or_default();
         names.sort();
@@ -78,10 +91,10 @@ fn spirv_struct(first_member: &str, member_count: usize) -> (Vec<(String, u32)>,
             let members = names.into_iter().zip(offsets).map(|((_, n), (_, o))| (n, o)).collect();
             let stride =
                 r.array_element.iter().find(|(_, e)| *e == id).and_then(|(a, _)| r.array_stride.get(a)).copied();
-            return (members, stride);
+            return Some((members, stride));
         }
     }
-    panic!("no struct starting with member {first_member} in cloth_step.spv");
+    None
 }
 
 #[test]
@@ -110,14 +123,17 @@ fn every_shared_struct_has_the_core_layout() {
 
 #[test]
 fn specialization_constants_are_the_effects_in_order() {
-    let r = reflect();
-    let by_id: HashMap<u32, String> =
-        r.spec_ids.iter().map(|(target, id)| (*id, r.names.get(target).cloned().unwrap_or_default())).collect();
-    for (id, (name, _)) in cloth_core::EffectSet::brief().shader_constants().into_iter().enumerate() {
-        assert_eq!(by_id.get(&(id as u32)).map(String::as_str), Some(name), "constant_id {id}: {by_id:?}");
+    for (file, spirv) in MODULES {
+        let r = reflect(spirv);
+        let by_id: HashMap<u32, String> =
+            r.spec_ids.iter().map(|(target, id)| (*id, r.names.get(target).cloned().unwrap_or_default())).collect();
+        for (id, (name, _)) in cloth_core::EffectSet::brief().shader_constants().into_iter().enumerate() {
+            assert_eq!(by_id.get(&(id as u32)).map(String::as_str), Some(name), "{file}: constant_id {id}: {by_id:?}");
+        }
+        assert!(
+            by_id.contains_key(&cloth_vulkano::WORKGROUP_SIZE_CONSTANT_ID),
+            "{file}: workgroup size is specializable: {by_id:?}"
+        );
+        assert!(by_id.contains_key(&cloth_vulkano::STAGE_CONSTANT_ID), "{file}: the pass is specializable: {by_id:?}");
     }
-    assert!(
-        by_id.contains_key(&cloth_vulkano::WORKGROUP_SIZE_CONSTANT_ID),
-        "workgroup size is specializable: {by_id:?}"
-    );
 }

@@ -1,0 +1,279 @@
+//! The dispatches of one substep for each integrator: specialized pipelines, descriptor sets,
+//! workgroup counts.
+//!
+//! | integrator | passes per substep |
+//! |---|---|
+//! | semi-implicit Euler | 1: `cloth_step.comp`, `STAGE = 0` |
+//! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
+//! | XPBD | `xpbd.comp`: predict; `XPBD_ITERATIONS` × (one per non-empty colour + spheres); finish |
+//!
+//! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
+//! buffer `1 − k`; each pass has one descriptor set per `k`.
+
+use std::sync::Arc;
+
+use cloth_core::coloring::COLOR_COUNT;
+use cloth_core::integrator::XPBD_ITERATIONS;
+use cloth_core::layout::{GpuBuffers, GpuColorRange, GpuSimParams, GpuSphere};
+use cloth_core::{Effect, Integrator, Scene, SimError};
+use vulkano::buffer::Subbuffer;
+use vulkano::descriptor_set::allocator::StandardDescriptorSetAllocator;
+use vulkano::descriptor_set::layout::DescriptorType;
+use vulkano::descriptor_set::{DescriptorBufferInfo, DescriptorSet, WriteDescriptorSet};
+use vulkano::device::Device;
+use vulkano::pipeline::compute::ComputePipelineCreateInfo;
+use vulkano::pipeline::layout::PipelineDescriptorSetLayoutCreateInfo;
+use vulkano::pipeline::{ComputePipeline, PipelineLayout, PipelineShaderStageCreateInfo};
+use vulkano::shader::{ShaderModule, ShaderModuleCreateInfo, SpecializationConstant};
+
+use crate::{BACKEND_NAME, STEP_SPIRV, XPBD_SPIRV};
+
+/// Invocations per workgroup (specialization constant [`WORKGROUP_SIZE_CONSTANT_ID`]).
+pub const WORKGROUP_SIZE: u32 = 64;
+/// Specialization-constant id of the workgroup size; ids `0..8` are the effects, in
+/// `cloth_core::Effect::ALL` order.
+pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 8;
+/// Specialization-constant id of the pass a pipeline runs: `STAGE` in `cloth_step.comp` (0 Euler,
+/// 1 and 2 the Verlet halves), `XPBD_PASS` in `xpbd.comp`.
+pub const STAGE_CONSTANT_ID: u32 = 9;
+/// Binding of XPBD's colour range, a dynamic uniform buffer.
+const COLOR_RANGE_BINDING: u32 = 10;
+
+pub(crate) type State = Subbuffer<[[f32; 4]]>;
+
+/// The buffers every integrator's passes bind, and the allocators to make more.
+pub(crate) struct StateBuffers {
+    pub params: Subbuffer<GpuSimParams>,
+    pub spheres: Subbuffer<[GpuSphere]>,
+    pub positions: [State; 2],
+    pub velocities: [State; 2],
+    pub max_penetration: Subbuffer<[u32]>,
+}
+
+/// One dispatch of a substep.
+pub(crate) struct Pass {
+    /// Index into [`SubstepPlan::pipelines`].
+    pub pipeline: usize,
+    /// The descriptor set when state buffer `k` is current.
+    pub sets: [Arc<DescriptorSet>; 2],
+    /// Workgroups along x, y, z.
+    pub workgroups: [u32; 3],
+    /// The dynamic offset of the layout's dynamic uniform, when it has one.
+    pub dynamic_offset: Option<u32>,
+}
+
+/// The dispatches of one substep, in order, and the buffers only they use (kept alive here;
+/// the initial contents are copied in by the caller).
+pub(crate) struct SubstepPlan {
+    pub pipelines: Vec<Arc<ComputePipeline>>,
+    pub passes: Vec<Pass>,
+    /// `(buffer, bytes)` to upload before the first substep.
+    pub uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)>,
+}
+
+fn device_error(reason: impl std::fmt::Display) -> SimError {
+    SimError::Device { backend: BACKEND_NAME, reason: reason.to_string() }
+}
+
+/// Workgroups for `items` invocations: along x up to the device's limit, the rest along y.
+pub(crate) fn workgroups(items: u32, max_x: u32) -> [u32; 3] {
+    let groups = items.div_ceil(WORKGROUP_SIZE).max(1);
+    let max_x = max_x.max(1);
+    if groups <= max_x { [groups, 1, 1] } else { [max_x, groups.div_ceil(max_x), 1] }
+}
+
+/// A SPIR-V module whose pipelines share one layout (reflected from the module; XPBD's colour
+/// range made dynamic).
+struct Kernel {
+    device: Arc<Device>,
+    module: Arc<ShaderModule>,
+    layout: Arc<PipelineLayout>,
+    effects: Vec<(u32, SpecializationConstant)>,
+}
+
+impl Kernel {
+    fn new(device: &Arc<Device>, scene: &Scene, spirv: &[u8], dynamic_binding: Option<u32>) -> Result<Self, SimError> {
+        let words = vulkano::shader::spirv::bytes_to_words(spirv).map_err(device_error)?;
+        // SAFETY: the SPIR-V comes from glslc, which emits valid modules for Vulkan 1.1.
+        let module = unsafe { ShaderModule::new(device.clone(), ShaderModuleCreateInfo::new(&words)) }
+            .map_err(|e| device_error(format!("loading the SPIR-V: {e}")))?;
+        let effects: Vec<(u32, SpecializationConstant)> = scene
+            .effects
+            .shader_constants()
+            .into_iter()
+            .enumerate()
+            .map(|(id, (_, on))| (id as u32, SpecializationConstant::Bool(on)))
+            .chain([(WORKGROUP_SIZE_CONSTANT_ID, SpecializationConstant::U32(WORKGROUP_SIZE))])
+            .collect();
+        let entry = module.entry_point("main").ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
+        let mut info = PipelineDescriptorSetLayoutCreateInfo::from_stages([&PipelineShaderStageCreateInfo::new(entry)]);
+        if let Some(binding) = dynamic_binding
+            && let Some(b) = info.set_layouts.first_mut().and_then(|s| s.bindings.get_mut(&binding))
+        {
+            b.descriptor_type = DescriptorType::UniformBufferDynamic;
+        }
+        let layout = PipelineLayout::new(
+            device.clone(),
+            info.into_pipeline_layout_create_info(device.clone())
+                .map_err(|e| device_error(format!("pipeline layout: {e:?}")))?,
+        )
+        .map_err(|e| device_error(format!("pipeline layout: {e}")))?;
+        Ok(Self { device: device.clone(), module, layout, effects })
+    }
+
+    /// The pipeline with the scene's effects, the workgroup size and `STAGE`/`XPBD_PASS = stage`.
+    fn pipeline(&self, stage: u32) -> Result<Arc<ComputePipeline>, SimError> {
+        let constants =
+            self.effects.iter().cloned().chain([(STAGE_CONSTANT_ID, SpecializationConstant::U32(stage))]).collect();
+        let entry = self
+            .module
+            .specialize(constants)
+            .map_err(|e| device_error(format!("specializing the shader: {e}")))?
+            .entry_point("main")
+            .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
+        ComputePipeline::new(
+            self.device.clone(),
+            None,
+            ComputePipelineCreateInfo::stage_layout(PipelineShaderStageCreateInfo::new(entry), self.layout.clone()),
+        )
+        .map_err(|e| device_error(format!("compute pipeline: {e}")))
+    }
+
+    fn set(
+        &self,
+        descriptors: &Arc<StandardDescriptorSetAllocator>,
+        writes: impl IntoIterator<Item = WriteDescriptorSet>,
+    ) -> Result<Arc<DescriptorSet>, SimError> {
+        DescriptorSet::new(descriptors.clone(), self.layout.set_layouts()[0].clone(), writes, [])
+            .map_err(|e| device_error(format!("descriptor set: {e}")))
+    }
+}
+
+/// Builds the passes of one substep of the scene's integrator. `device_local` allocates a
+/// device buffer of the given usage and size.
+pub(crate) fn plan(
+    device: &Arc<Device>,
+    scene: &Scene,
+    data: &GpuBuffers,
+    state: &StateBuffers,
+    descriptors: &Arc<StandardDescriptorSetAllocator>,
+    device_local: &dyn Fn(vulkano::buffer::BufferUsage, u64) -> Result<Subbuffer<[u8]>, SimError>,
+) -> Result<SubstepPlan, SimError> {
+    use vulkano::buffer::BufferUsage;
+    let storage = BufferUsage::STORAGE_BUFFER | BufferUsage::TRANSFER_DST | BufferUsage::TRANSFER_SRC;
+    let max_x = device.physical_device().properties().max_compute_work_group_count[0];
+    let vertices = workgroups(data.positions.len() as u32, max_x);
+    let [p, v] = [&state.positions, &state.velocities];
+    let mut uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)> = Vec::new();
+    let mut buffer_with = |usage: BufferUsage, bytes: Vec<u8>| -> Result<Subbuffer<[u8]>, SimError> {
+        let buffer = device_local(usage, bytes.len() as u64)?;
+        uploads.push((buffer.clone(), bytes));
+        Ok(buffer)
+    };
+    match scene.integrator {
+        Integrator::SemiImplicitEuler | Integrator::VelocityVerlet => {
+            let ranges = buffer_with(storage, bytemuck::cast_slice(&data.spring_ranges).to_vec())?;
+            let ends = buffer_with(storage, bytemuck::cast_slice(&data.spring_ends).to_vec())?;
+            let kernel = Kernel::new(device, scene, STEP_SPIRV, None)?;
+            let set = |[x_in, v_in, x_out, v_out]: [&State; 4]| {
+                kernel.set(
+                    descriptors,
+                    [
+                        WriteDescriptorSet::buffer(0, state.params.clone()),
+                        WriteDescriptorSet::buffer(1, state.spheres.clone()),
+                        WriteDescriptorSet::buffer(2, ranges.clone()),
+                        WriteDescriptorSet::buffer(3, ends.clone()),
+                        WriteDescriptorSet::buffer(4, x_in.clone()),
+                        WriteDescriptorSet::buffer(5, v_in.clone()),
+                        WriteDescriptorSet::buffer(6, x_out.clone()),
+                        WriteDescriptorSet::buffer(7, v_out.clone()),
+                        WriteDescriptorSet::buffer(8, state.max_penetration.clone()),
+                    ],
+                )
+            };
+            if scene.integrator == Integrator::SemiImplicitEuler {
+                let sets = [set([&p[0], &v[0], &p[1], &v[1]])?, set([&p[1], &v[1], &p[0], &v[0]])?];
+                return Ok(SubstepPlan {
+                    pipelines: vec![kernel.pipeline(0)?],
+                    passes: vec![Pass { pipeline: 0, sets, workgroups: vertices, dynamic_offset: None }],
+                    uploads,
+                });
+            }
+            // Verlet's half-step velocities, and a sink for the positions its second kick does not
+            // write.
+            let v_half: State =
+                device_local(storage, bytemuck::cast_slice::<_, u8>(&data.velocities).len() as u64)?.reinterpret();
+            let sink: State = device_local(storage, 16)?.reinterpret();
+            let first = [set([&p[0], &v[0], &p[1], &v_half])?, set([&p[1], &v[1], &p[0], &v_half])?];
+            let second = [set([&p[1], &v_half, &sink, &v[1]])?, set([&p[0], &v_half, &sink, &v[0]])?];
+            Ok(SubstepPlan {
+                pipelines: vec![kernel.pipeline(1)?, kernel.pipeline(2)?],
+                passes: vec![
+                    Pass { pipeline: 0, sets: first, workgroups: vertices, dynamic_offset: None },
+                    Pass { pipeline: 1, sets: second, workgroups: vertices, dynamic_offset: None },
+                ],
+                uploads,
+            })
+        }
+        Integrator::Xpbd => {
+            let constraints = buffer_with(storage, bytemuck::cast_slice(&data.constraints).to_vec())?;
+            let lambdas = buffer_with(storage, vec![0u8; 4 * data.constraints.len()])?;
+            let corrections = buffer_with(storage, vec![0u8; 4 * data.positions.len()])?;
+            let ranges =
+                buffer_with(BufferUsage::UNIFORM_BUFFER | BufferUsage::TRANSFER_DST, data.color_ranges.clone())?;
+            let kernel = Kernel::new(device, scene, XPBD_SPIRV, Some(COLOR_RANGE_BINDING))?;
+            let set = |k: usize| {
+                kernel.set(
+                    descriptors,
+                    [
+                        WriteDescriptorSet::buffer(0, state.params.clone()),
+                        WriteDescriptorSet::buffer(1, state.spheres.clone()),
+                        WriteDescriptorSet::buffer(2, constraints.clone()),
+                        WriteDescriptorSet::buffer(3, p[k].clone()),
+                        WriteDescriptorSet::buffer(4, v[k].clone()),
+                        WriteDescriptorSet::buffer(5, p[1 - k].clone()),
+                        WriteDescriptorSet::buffer(6, v[1 - k].clone()),
+                        WriteDescriptorSet::buffer(7, state.max_penetration.clone()),
+                        WriteDescriptorSet::buffer(8, lambdas.clone()),
+                        WriteDescriptorSet::buffer(9, corrections.clone()),
+                        WriteDescriptorSet::buffer_with_range(
+                            COLOR_RANGE_BINDING,
+                            DescriptorBufferInfo {
+                                buffer: ranges.clone(),
+                                range: 0..size_of::<GpuColorRange>() as u64,
+                            },
+                        ),
+                    ],
+                )
+            };
+            let sets = [set(0)?, set(1)?];
+            let pipelines = (0..4).map(|pass| kernel.pipeline(pass)).collect::<Result<Vec<_>, _>>()?;
+            let pass = |pipeline: usize, workgroups: [u32; 3], offset: u32| Pass {
+                pipeline,
+                sets: sets.clone(),
+                workgroups,
+                dynamic_offset: Some(offset),
+            };
+            let mut passes = vec![pass(0, vertices, 0)];
+            let contact = scene.effects.contains(Effect::SphereContact) && data.params.sphere_count > 0;
+            for iteration in 0..XPBD_ITERATIONS {
+                for color in 0..COLOR_COUNT {
+                    let range = data.color_range(color, iteration);
+                    if range.count > 0 {
+                        passes.push(pass(1, workgroups(range.count, max_x), GpuColorRange::offset(color, iteration)));
+                    }
+                }
+                if contact {
+                    passes.push(pass(2, vertices, 0));
+                }
+            }
+            passes.push(pass(3, vertices, 0));
+            Ok(SubstepPlan { pipelines, passes, uploads })
+        }
+        other => Err(SimError::Unsupported {
+            backend: BACKEND_NAME,
+            what: format!("the {other:?} integrator"),
+            fix: "use the cpu backend, or integrator: SemiImplicitEuler, VelocityVerlet or Xpbd".into(),
+        }),
+    }
+}

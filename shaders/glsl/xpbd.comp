@@ -1,0 +1,192 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+
+// One XPBD substep (cloth_core::Integrator::Xpbd), as a sequence of passes: the GLSL twin of
+// shaders/wgsl/xpbd.wgsl. The projections mirror crates/cloth-core/src/constraints.rs function by
+// function and operation by operation. A substep is:
+//   pass 0 (per vertex)     predict: v* = v + Δt g (+ drag), x* = x + Δt v*; clear the normal corrections;
+//   then XPBD_ITERATIONS times:
+//     pass 1 (per spring)   project the springs of one colour (springs of a colour share no
+//                           vertex, so one invocation per spring needs no atomics), once per colour;
+//     pass 2 (per vertex)   project the vertex out of the spheres, summing the corrections;
+//   pass 3 (per vertex)     v = (x* − x)/Δt, friction on the contacts, deepest penetration.
+// Units: m, kg, s, N/m.
+
+#include "effects.glsl"
+
+// Which pass this pipeline runs (see above).
+layout(constant_id = 9) const uint XPBD_PASS = 0u;
+
+#include "layout.glsl"
+#include "forces.glsl"
+
+layout(set = 0, binding = 2, std430) readonly buffer Constraints { Constraint constraints[]; };
+// The state at the substep's start (w: 1 free, 0 pinned).
+layout(set = 0, binding = 3, std430) readonly buffer PositionsIn { vec4 positions_in[]; };
+layout(set = 0, binding = 4, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };
+// The predicted positions, projected in place; then the new state.
+layout(set = 0, binding = 5, std430) buffer PositionsOut { vec4 positions_out[]; };
+layout(set = 0, binding = 6, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
+// Deepest penetration so far, m, as the bits of a non-negative float (see cloth_step.comp).
+layout(set = 0, binding = 7, std430) buffer MaxPenetration { uint max_penetration_bits; };
+// Each spring's Lagrange multiplier λ (in constraint order).
+layout(set = 0, binding = 8, std430) buffer Lambdas { float lambdas[]; };
+// Each vertex's summed sphere correction in this substep, m.
+layout(set = 0, binding = 9, std430) buffer NormalCorrections { float normal_corrections[]; };
+// cloth_core::layout::GpuColorRange (16 bytes): the colour pass 1 projects, selected by a
+// dynamic offset.
+layout(set = 0, binding = 10, std140) uniform ColorRange {
+    uint first;
+    uint count;
+    uint first_iteration;   // 1: the multipliers start from 0
+    uint pad;
+} color;
+
+// Δλ = (−C − α̃ λ) / (w_a + w_b + α̃), α̃ = 1/(k Δt²); the ends move by ±w Δλ n.
+void project_spring(inout vec3 x_a, inout vec3 x_b, float inverse_mass_a, float inverse_mass_b,
+                    float rest_length, float stiffness, float dt, inout float lambda) {
+    if (inverse_mass_a + inverse_mass_b <= 0.0 || stiffness <= 0.0) {
+        return;
+    }
+    vec3 d = x_a - x_b;
+    float len = sqrt(dot(d, d));
+    if (len <= 0.0) {
+        return;
+    }
+    vec3 n = d * (1.0 / len);
+    float compliance = 1.0 / (stiffness * dt * dt);
+    float delta_lambda = (-(len - rest_length) - compliance * lambda) / (inverse_mass_a + inverse_mass_b + compliance);
+    lambda = lambda + delta_lambda;
+    x_a = x_a + n * (inverse_mass_a * delta_lambda);
+    x_b = x_b - n * (inverse_mass_b * delta_lambda);
+}
+
+// The non-penetration constraint |x − c| ≥ r: move x to the surface, return the correction.
+float project_sphere(inout vec3 x, vec3 center, float radius) {
+    vec3 offset = x - center;
+    float distance = sqrt(dot(offset, offset));
+    float depth = radius - distance;
+    if (depth > 0.0 && distance > 0.0) {
+        x = x + offset * (depth / distance);
+        return depth;
+    }
+    return 0.0;
+}
+
+// Coulomb friction in position form: the tangential velocity loses at most c_f times the normal
+// correction's velocity, and stops when that suffices.
+vec3 contact_friction(vec3 v, vec3 x, vec3 center, float radius, float coefficient, float normal_correction,
+                      float dt) {
+    vec3 offset = x - center;
+    float distance = sqrt(dot(offset, offset));
+    if (distance <= 0.0 || distance > radius * 1.000001) {
+        return v;
+    }
+    vec3 n = offset * (1.0 / distance);
+    vec3 v_t = v - n * dot(v, n);
+    float speed = sqrt(dot(v_t, v_t));
+    float budget = coefficient * normal_correction * (1.0 / dt);
+    if (speed > 0.0) {
+        return v - v_t * (min(speed, budget) / speed);
+    }
+    return v;
+}
+
+void predict(uint i) {
+    vec4 p = positions_in[i];
+    vec3 x = p.xyz;
+    if (p.w != 0.0) {
+        float h = params.substep_dt;
+        float m = params.vertex_mass;
+        vec3 v = velocities_in[i].xyz;
+        if (EFFECT_GRAVITY) {
+            v += params.gravity.xyz * h;
+        }
+        if (EFFECT_AIR_DRAG) {
+            v += air_drag_force(m, params.air_drag, v) * (h / m);
+        }
+        x = x + v * h;
+    }
+    positions_out[i] = vec4(x, p.w);
+    normal_corrections[i] = 0.0;
+}
+
+void project_color(uint t) {
+    if (t >= color.count) {
+        return;
+    }
+    uint c = color.first + t;
+    Constraint s = constraints[c];
+    if (!kind_enabled(s.kind)) {
+        return;
+    }
+    vec4 pa = positions_out[s.a];
+    vec4 pb = positions_out[s.b];
+    float w = 1.0 / params.vertex_mass;
+    float lambda = color.first_iteration != 0u ? 0.0 : lambdas[c];
+    vec3 x_a = pa.xyz;
+    vec3 x_b = pb.xyz;
+    project_spring(x_a, x_b, pa.w * w, pb.w * w, s.rest_length, params.stiffness[s.kind], params.substep_dt, lambda);
+    lambdas[c] = lambda;
+    positions_out[s.a] = vec4(x_a, pa.w);
+    positions_out[s.b] = vec4(x_b, pb.w);
+}
+
+void project_spheres(uint i) {
+    vec4 p = positions_out[i];
+    if (p.w == 0.0) {
+        return;
+    }
+    vec3 x = p.xyz;
+    float correction = normal_corrections[i];
+    for (uint s = 0u; s < params.sphere_count; s++) {
+        correction = correction + project_sphere(x, spheres[s].center, spheres[s].radius);
+    }
+    positions_out[i] = vec4(x, p.w);
+    normal_corrections[i] = correction;
+}
+
+void finish(uint i) {
+    vec4 p = positions_out[i];
+    vec3 v = vec3(0.0);
+    if (p.w != 0.0) {
+        float h = params.substep_dt;
+        v = (p.xyz - positions_in[i].xyz) * (1.0 / h);
+        float correction = normal_corrections[i];
+        if (EFFECT_FRICTION && correction > 0.0) {
+            for (uint s = 0u; s < params.sphere_count; s++) {
+                v = contact_friction(v, p.xyz, spheres[s].center, spheres[s].radius, spheres[s].friction, correction, h);
+            }
+        }
+    }
+    velocities_out[i] = vec4(v, 0.0);
+    if (EFFECT_CONTACT) {
+        float deepest = 0.0;
+        for (uint s = 0u; s < params.sphere_count; s++) {
+            vec3 offset = p.xyz - spheres[s].center;
+            deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+        }
+        if (deepest > 0.0) {
+            atomicMax(max_penetration_bits, floatBitsToUint(deepest));
+        }
+    }
+}
+
+void main() {
+    // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
+    uint t = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    if (XPBD_PASS == 1u) {
+        project_color(t);
+        return;
+    }
+    if (t >= params.vertex_count) {
+        return;
+    }
+    if (XPBD_PASS == 0u) {
+        predict(t);
+    } else if (XPBD_PASS == 2u) {
+        project_spheres(t);
+    } else {
+        finish(t);
+    }
+}
