@@ -65,18 +65,17 @@ fn reflect(spirv: &[u8]) -> Reflection {
 
 /// `(member name, offset)` of the laid-out struct whose first member is `first_member`, and its array
 /// stride (its size) if it is the element of a runtime array, from the first module that has it.
-fn spirv_struct(first_member: &str, member_count: usize) -> (Vec<(String, u32)>, Option<u32>) {
+fn spirv_struct(first_member: &str, member_count: usize) -> StructLayout {
     MODULES
         .iter()
         .find_map(|(_, spirv)| spirv_struct_in(&reflect(spirv), first_member, member_count))
         .unwrap_or_else(|| panic!("no struct starting with member {first_member} in any kernel"))
 }
 
-fn spirv_struct_in(
-    r: &Reflection,
-    first_member: &str,
-    member_count: usize,
-) -> Option<(Vec<(String, u32)>, Option<u32>)> {
+/// A struct's `(member name, offset)` list and its array stride, if any.
+type StructLayout = (Vec<(String, u32)>, Option<u32>);
+
+fn spirv_struct_in(r: &Reflection, first_member: &str, member_count: usize) -> Option<StructLayout> {
     for id in &r.structs {
         let mut names = r.member_names.get(id).cloned().unwrap_or_default();
         names.sort();
