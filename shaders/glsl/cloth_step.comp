@@ -9,7 +9,12 @@
 
 // Which integration stage this pipeline runs: 0 semi-implicit Euler (the brief's); 1 and 2 the
 // two halves of velocity Verlet: 1 = kick and drift (v½ = v + ½Δt F(x, v)/m, x' = x + Δt v½),
-// 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched).
+// 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched); 3 to 6 the four stages
+// of classical Runge–Kutta, each evaluating a_k = F(x_k, v_k)/m at the state it reads:
+//   3: x_2 = x + ½Δt v,   v_2 = v + ½Δt a_1    (stores x, v, Σx = v, Σv = a_1 in rk4_scratch)
+//   4: x_3 = x + ½Δt v_2, v_3 = v + ½Δt a_2    (Σx += 2 v_2, Σv += 2 a_2)
+//   5: x_4 = x + Δt v_3,  v_4 = v + Δt a_3     (Σx += 2 v_3, Σv += 2 a_3)
+//   6: x' = x + Δt/6 (Σx + v_4), v' = v + Δt/6 (Σv + a_4)
 layout(constant_id = 9) const uint STAGE = 0u;
 
 #include "layout.glsl"
@@ -24,6 +29,9 @@ layout(set = 0, binding = 7, std430) buffer VelocitiesOut { vec4 velocities_out[
 // Deepest penetration so far, m, as the bits of a non-negative float (their order as uints is
 // their order as floats, so atomicMax on uint is max on float).
 layout(set = 0, binding = 8, std430) buffer MaxPenetration { uint max_penetration_bits; };
+// RK4 only (a 64-byte placeholder otherwise): per vertex, the substep's start x and v and the
+// running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
+layout(set = 0, binding = 9, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
 
 void main() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
@@ -41,7 +49,7 @@ void main() {
         float dt = params.substep_dt;
         float half_dt = dt * 0.5;
         // The step the friction's stopping term refers to: what this stage's velocity update spans.
-        float friction_dt = STAGE != 0u ? half_dt : dt;
+        float friction_dt = (STAGE == 1u || STAGE == 2u) ? half_dt : dt;
         vec3 force = vec3(0.0);
         if (EFFECT_GRAVITY) {
             force += gravity_force(mass, params.gravity.xyz);
@@ -81,20 +89,51 @@ void main() {
             // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
             v_new = v + force * (dt / mass);
             x_new = x + v_new * dt;
-        } else {
+        } else if (STAGE <= 2u) {
             // Verlet: a half kick, then (stage 1) a full drift.
             v_new = v + force * (half_dt / mass);
             if (STAGE == 1u) {
                 x_new = x + v_new * dt;
             }
+        } else {
+            // RK4 (see STAGE above): x, v here are the stage's state x_k, v_k.
+            vec3 a = force * (1.0 / mass);
+            uint slot = 4u * i;
+            if (STAGE == 3u) {
+                rk4_scratch[slot] = vec4(x, 0.0);
+                rk4_scratch[slot + 1u] = vec4(v, 0.0);
+                rk4_scratch[slot + 2u] = vec4(v, 0.0);
+                rk4_scratch[slot + 3u] = vec4(a, 0.0);
+                x_new = x + v * half_dt;
+                v_new = v + a * half_dt;
+            } else {
+                vec3 x_start = rk4_scratch[slot].xyz;
+                vec3 v_start = rk4_scratch[slot + 1u].xyz;
+                vec3 sum_x = rk4_scratch[slot + 2u].xyz;
+                vec3 sum_v = rk4_scratch[slot + 3u].xyz;
+                if (STAGE == 6u) {
+                    float sixth = dt / 6.0;
+                    x_new = x_start + (sum_x + v) * sixth;
+                    v_new = v_start + (sum_v + a) * sixth;
+                } else {
+                    rk4_scratch[slot + 2u] = vec4(sum_x + v * 2.0, 0.0);
+                    rk4_scratch[slot + 3u] = vec4(sum_v + a * 2.0, 0.0);
+                    float step_dt = STAGE == 5u ? dt : half_dt;
+                    x_new = x_start + v * step_dt;
+                    v_new = v_start + a * step_dt;
+                }
+            }
         }
+    } else if (STAGE >= 3u && STAGE <= 5u) {
+        v_new = v; // a pinned vertex's intermediate RK4 states keep its (zero) velocity
     }
     velocities_out[i] = vec4(v_new, 0.0);
     if (STAGE == 2u) {
         return; // the second kick leaves the positions of the first stage as they are
     }
     positions_out[i] = vec4(x_new, p.w);
-    if (EFFECT_CONTACT) {
+    // The deepest penetration is checked on the state that ends a substep, as on the CPU.
+    if (EFFECT_CONTACT && (STAGE == 0u || STAGE == 1u || STAGE == 6u)) {
         float deepest = 0.0;
         for (uint s = 0u; s < params.sphere_count; s++) {
             vec3 offset = x_new - spheres[s].center;

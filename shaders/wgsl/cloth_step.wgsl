@@ -3,7 +3,12 @@
 
 // Which integration stage this pipeline runs: 0 semi-implicit Euler (the brief's); 1 and 2 the
 // two halves of velocity Verlet: 1 = kick and drift (v½ = v + ½Δt F(x, v)/m, x' = x + Δt v½),
-// 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched).
+// 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched); 3 to 6 the four stages
+// of classical Runge–Kutta, each evaluating a_k = F(x_k, v_k)/m at the state it reads:
+//   3: x_2 = x + ½Δt v,   v_2 = v + ½Δt a_1    (stores x, v, Σx = v, Σv = a_1 in rk4_scratch)
+//   4: x_3 = x + ½Δt v_2, v_3 = v + ½Δt a_2    (Σx += 2 v_2, Σv += 2 a_2)
+//   5: x_4 = x + Δt v_3,  v_4 = v + Δt a_3     (Σx += 2 v_3, Σv += 2 a_3)
+//   6: x' = x + Δt/6 (Σx + v_4), v' = v + Δt/6 (Σv + a_4)
 override STAGE: u32 = 0u;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
@@ -17,6 +22,9 @@ override STAGE: u32 = 0u;
 // Deepest penetration so far, m, as the bits of a non-negative f32 (whose bit patterns order
 // like the numbers, so atomicMax on u32 is max on f32).
 @group(0) @binding(8) var<storage, read_write> max_penetration_bits: atomic<u32>;
+// RK4 only (a 64-byte placeholder otherwise): per vertex, the substep's start x and v and the
+// running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
+@group(0) @binding(9) var<storage, read_write> rk4_scratch: array<vec4<f32>>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -36,7 +44,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         let half = dt * 0.5;
         // The step the friction's stopping term refers to: what this stage's velocity update spans.
         var friction_dt = dt;
-        if (STAGE != 0u) {
+        if (STAGE == 1u || STAGE == 2u) {
             friction_dt = half;
         }
         var force = vec3<f32>(0.0);
@@ -77,20 +85,54 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
             v_new = v + force * (dt / mass);
             x_new = x + v_new * dt;
-        } else {
+        } else if (STAGE <= 2u) {
             // Verlet: a half kick, then (stage 1) a full drift.
             v_new = v + force * (half / mass);
             if (STAGE == 1u) {
                 x_new = x + v_new * dt;
             }
+        } else {
+            // RK4 (see STAGE above): x, v here are the stage's state x_k, v_k.
+            let a = force * (1.0 / mass);
+            let slot = 4u * i;
+            if (STAGE == 3u) {
+                rk4_scratch[slot] = vec4<f32>(x, 0.0);
+                rk4_scratch[slot + 1u] = vec4<f32>(v, 0.0);
+                rk4_scratch[slot + 2u] = vec4<f32>(v, 0.0);
+                rk4_scratch[slot + 3u] = vec4<f32>(a, 0.0);
+                x_new = x + v * half;
+                v_new = v + a * half;
+            } else {
+                let x_start = rk4_scratch[slot].xyz;
+                let v_start = rk4_scratch[slot + 1u].xyz;
+                let sum_x = rk4_scratch[slot + 2u].xyz;
+                let sum_v = rk4_scratch[slot + 3u].xyz;
+                if (STAGE == 6u) {
+                    let sixth = dt / 6.0;
+                    x_new = x_start + (sum_x + v) * sixth;
+                    v_new = v_start + (sum_v + a) * sixth;
+                } else {
+                    rk4_scratch[slot + 2u] = vec4<f32>(sum_x + v * 2.0, 0.0);
+                    rk4_scratch[slot + 3u] = vec4<f32>(sum_v + a * 2.0, 0.0);
+                    var step = half;
+                    if (STAGE == 5u) {
+                        step = dt;
+                    }
+                    x_new = x_start + v * step;
+                    v_new = v_start + a * step;
+                }
+            }
         }
+    } else if (STAGE >= 3u && STAGE <= 5u) {
+        v_new = v; // a pinned vertex's intermediate RK4 states keep its (zero) velocity
     }
     velocities_out[i] = vec4<f32>(v_new, 0.0);
     if (STAGE == 2u) {
         return; // the second kick leaves the positions of the first stage as they are
     }
     positions_out[i] = vec4<f32>(x_new, p.w);
-    if (EFFECT_CONTACT) {
+    // The deepest penetration is checked on the state that ends a substep, as on the CPU.
+    if (EFFECT_CONTACT && (STAGE == 0u || STAGE == 1u || STAGE == 6u)) {
         var deepest = 0.0;
         for (var s = 0u; s < params.sphere_count; s++) {
             let offset = x_new - spheres[s].center;

@@ -50,26 +50,6 @@ fn list(problems: &[Problem]) -> String {
     problems.iter().map(|p| format!("  - {p}")).collect::<Vec<_>>().join("\n")
 }
 
-impl SimError {
-    /// Refuses the integrators the GPU kernels do not run (they run semi-implicit Euler,
-    /// velocity Verlet and XPBD).
-    ///
-    /// # Errors
-    /// [`SimError::Unsupported`] naming the integrator and the alternatives.
-    pub fn require_gpu_integrator(backend: &'static str, scene: &crate::Scene) -> Result<(), SimError> {
-        match scene.integrator {
-            crate::Integrator::SemiImplicitEuler | crate::Integrator::VelocityVerlet | crate::Integrator::Xpbd => {
-                Ok(())
-            }
-            other => Err(SimError::Unsupported {
-                backend,
-                what: format!("the {other:?} integrator"),
-                fix: "use the cpu backend, or integrator: SemiImplicitEuler, VelocityVerlet or Xpbd".into(),
-            }),
-        }
-    }
-}
-
 impl SceneError {
     pub(crate) fn from_ron(e: ron::error::SpannedError) -> Self {
         SceneError::Parse { line: e.span.start.line, column: e.span.start.col, message: e.code.to_string() }

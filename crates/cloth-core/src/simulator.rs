@@ -117,9 +117,21 @@ pub trait Simulator {
         AdvanceCounts::default()
     }
 
-    /// GPU execution time of the advances since the last call (or since creation), s, measured
-    /// by timestamp queries at the start and end of each advance's work. `None` where there is no
-    /// GPU timer: the CPU backends, or a device without timestamp queries.
+    /// Turns GPU timing on or off (off by default: no timestamps are written). Returns whether
+    /// it is on: `false` where there is no GPU timer (the CPU backends, or a device without
+    /// timestamp queries).
+    ///
+    /// While on, each `advance` writes a timestamp before and after its work. The device holds
+    /// the pairs of 256 advances; call [`Simulator::take_gpu_seconds`] at least that often, or
+    /// the 257th advance reads them itself (one host wait, counted in its
+    /// [`AdvanceCounts::host_waits`]).
+    fn set_gpu_timing(&mut self, on: bool) -> bool {
+        let _ = on;
+        false
+    }
+
+    /// GPU execution time of the advances timed since the last call, s (see
+    /// [`Simulator::set_gpu_timing`]); `None` when timing is off or unavailable.
     ///
     /// Reading the timestamps waits for the device (one host wait), so call it when the time is
     /// displayed or recorded, not every frame of a benchmark.

@@ -5,6 +5,7 @@
 //! |---|---|
 //! | semi-implicit Euler | 1: `cloth_step.comp`, `STAGE = 0` |
 //! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
+//! | RK4 | 4: `STAGE = 3..=6`, one per stage (state `k` → S → `1 − k` → S → `1 − k`) |
 //! | XPBD | `xpbd.comp`: predict; `XPBD_ITERATIONS` × (one per non-empty colour + spheres); finish |
 //!
 //! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
@@ -171,9 +172,12 @@ pub(crate) fn plan(
         Ok(buffer)
     };
     match scene.integrator {
-        Integrator::SemiImplicitEuler | Integrator::VelocityVerlet => {
+        Integrator::SemiImplicitEuler | Integrator::VelocityVerlet | Integrator::RungeKutta4 => {
             let ranges = buffer_with(storage, bytemuck::cast_slice(&data.spring_ranges).to_vec())?;
             let ends = buffer_with(storage, bytemuck::cast_slice(&data.spring_ends).to_vec())?;
+            let rk4 = scene.integrator == Integrator::RungeKutta4;
+            // RK4's per-vertex start state and sums (a placeholder for the other integrators).
+            let rk4_scratch = device_local(storage, if rk4 { 64 * data.positions.len() as u64 } else { 64 })?;
             let kernel = Kernel::new(device, scene, STEP_SPIRV, None)?;
             let set = |[x_in, v_in, x_out, v_out]: [&State; 4]| {
                 kernel.set(
@@ -188,32 +192,63 @@ pub(crate) fn plan(
                         WriteDescriptorSet::buffer(6, x_out.clone()),
                         WriteDescriptorSet::buffer(7, v_out.clone()),
                         WriteDescriptorSet::buffer(8, state.max_penetration.clone()),
+                        WriteDescriptorSet::buffer(9, rk4_scratch.clone()),
                     ],
                 )
             };
-            if scene.integrator == Integrator::SemiImplicitEuler {
-                let sets = [set([&p[0], &v[0], &p[1], &v[1]])?, set([&p[1], &v[1], &p[0], &v[0]])?];
-                return Ok(SubstepPlan {
-                    pipelines: vec![kernel.pipeline(0)?],
-                    passes: vec![Pass { pipeline: 0, sets, workgroups: vertices, dynamic_offset: None }],
-                    uploads,
-                });
+            let pass = |pipeline: usize, sets: [Arc<DescriptorSet>; 2]| Pass {
+                pipeline,
+                sets,
+                workgroups: vertices,
+                dynamic_offset: None,
+            };
+            let state_bytes = std::mem::size_of_val(data.positions.as_slice()) as u64;
+            match scene.integrator {
+                Integrator::SemiImplicitEuler => {
+                    let sets = [set([&p[0], &v[0], &p[1], &v[1]])?, set([&p[1], &v[1], &p[0], &v[0]])?];
+                    Ok(SubstepPlan { pipelines: vec![kernel.pipeline(0)?], passes: vec![pass(0, sets)], uploads })
+                }
+                Integrator::VelocityVerlet => {
+                    // Verlet's half-step velocities, and a sink for the positions its second kick
+                    // does not write.
+                    let v_half: State = device_local(storage, state_bytes)?.reinterpret();
+                    let sink: State = device_local(storage, 16)?.reinterpret();
+                    let first = [set([&p[0], &v[0], &p[1], &v_half])?, set([&p[1], &v[1], &p[0], &v_half])?];
+                    let second = [set([&p[1], &v_half, &sink, &v[1]])?, set([&p[0], &v_half, &sink, &v[0]])?];
+                    Ok(SubstepPlan {
+                        pipelines: vec![kernel.pipeline(1)?, kernel.pipeline(2)?],
+                        passes: vec![pass(0, first), pass(1, second)],
+                        uploads,
+                    })
+                }
+                _ => {
+                    // RK4's stage states alternate between a scratch state S and the output
+                    // buffer 1 - k: k -> S -> 1-k -> S -> 1-k. S starts as the initial state so
+                    // its w (free or pinned) is right from the first stage.
+                    let s_x: State =
+                        buffer_with(storage, bytemuck::cast_slice(&data.positions).to_vec())?.reinterpret();
+                    let s_v: State =
+                        buffer_with(storage, bytemuck::cast_slice(&data.velocities).to_vec())?.reinterpret();
+                    let stage = |n: u32| -> Result<[Arc<DescriptorSet>; 2], SimError> {
+                        let for_k = |k: usize| {
+                            let (out_x, out_v) = (&p[1 - k], &v[1 - k]);
+                            match n {
+                                1 => set([&p[k], &v[k], &s_x, &s_v]),
+                                3 => set([out_x, out_v, &s_x, &s_v]),
+                                _ => set([&s_x, &s_v, out_x, out_v]),
+                            }
+                        };
+                        Ok([for_k(0)?, for_k(1)?])
+                    };
+                    let mut passes = Vec::new();
+                    let mut pipelines = Vec::new();
+                    for n in 1..=4 {
+                        pipelines.push(kernel.pipeline(2 + n)?);
+                        passes.push(pass(n as usize - 1, stage(n)?));
+                    }
+                    Ok(SubstepPlan { pipelines, passes, uploads })
+                }
             }
-            // Verlet's half-step velocities, and a sink for the positions its second kick does not
-            // write.
-            let v_half: State =
-                device_local(storage, bytemuck::cast_slice::<_, u8>(&data.velocities).len() as u64)?.reinterpret();
-            let sink: State = device_local(storage, 16)?.reinterpret();
-            let first = [set([&p[0], &v[0], &p[1], &v_half])?, set([&p[1], &v[1], &p[0], &v_half])?];
-            let second = [set([&p[1], &v_half, &sink, &v[1]])?, set([&p[0], &v_half, &sink, &v[0]])?];
-            Ok(SubstepPlan {
-                pipelines: vec![kernel.pipeline(1)?, kernel.pipeline(2)?],
-                passes: vec![
-                    Pass { pipeline: 0, sets: first, workgroups: vertices, dynamic_offset: None },
-                    Pass { pipeline: 1, sets: second, workgroups: vertices, dynamic_offset: None },
-                ],
-                uploads,
-            })
         }
         Integrator::Xpbd => {
             let constraints = buffer_with(storage, bytemuck::cast_slice(&data.constraints).to_vec())?;
@@ -270,10 +305,5 @@ pub(crate) fn plan(
             passes.push(pass(3, vertices, 0));
             Ok(SubstepPlan { pipelines, passes, uploads })
         }
-        other => Err(SimError::Unsupported {
-            backend: BACKEND_NAME,
-            what: format!("the {other:?} integrator"),
-            fix: "use the cpu backend, or integrator: SemiImplicitEuler, VelocityVerlet or Xpbd".into(),
-        }),
     }
 }

@@ -33,7 +33,7 @@ pub struct VulkanoSimulator {
     in_flight: Option<FenceSignalFuture<Box<dyn GpuFuture>>>,
     /// Parameters to write at the start of the next command buffer.
     pending_parameters: Option<(GpuSimParams, Vec<GpuSphere>)>,
-    /// GPU time of each advance, when the queue has timestamps.
+    /// GPU time of each advance, when timing is on (`set_gpu_timing`) and the queue can.
     timer: Option<GpuTimer>,
     /// GPU seconds already read from a full timer and not yet taken.
     timed_seconds: f64,
@@ -62,12 +62,10 @@ impl VulkanoSimulator {
     /// Creates the simulator on an open device.
     ///
     /// # Errors
-    /// [`SimError::TooLarge`] beyond `maxStorageBufferRange`, [`SimError::Unsupported`] for an
-    /// integrator this backend does not run, [`SimError::Device`] when creating the GPU objects
-    /// fails.
+    /// [`SimError::TooLarge`] beyond `maxStorageBufferRange`, [`SimError::Device`] when creating
+    /// the GPU objects fails.
     pub fn on_context(scene: &Scene, context: VulkanContext) -> Result<Self, SimError> {
         scene.validate()?;
-        SimError::require_gpu_integrator(BACKEND_NAME, scene)?;
         let device = context.device.clone();
         let properties = device.physical_device().properties();
         let limit = properties.max_storage_buffer_range as u64;
@@ -126,7 +124,7 @@ impl VulkanoSimulator {
             commands,
             in_flight: None,
             pending_parameters: None,
-            timer: GpuTimer::new(&context.queue),
+            timer: None,
             timed_seconds: 0.0,
             current: 0,
             time_s: 0.0,
@@ -406,6 +404,15 @@ impl Simulator for VulkanoSimulator {
 
     fn last_advance_counts(&self) -> AdvanceCounts {
         self.last_advance
+    }
+
+    fn set_gpu_timing(&mut self, on: bool) -> bool {
+        if !on {
+            self.timer = None;
+        } else if self.timer.is_none() {
+            self.timer = GpuTimer::new(&self.context.queue);
+        }
+        self.timer.is_some()
     }
 
     fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {

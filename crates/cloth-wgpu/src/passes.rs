@@ -4,6 +4,7 @@
 //! |---|---|
 //! | semi-implicit Euler | 1: `cloth_step.wgsl`, `STAGE = 0` |
 //! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
+//! | RK4 | 4: `STAGE = 3..=6`, one per stage (state `k` → S → `1 − k` → S → `1 − k`) |
 //! | XPBD | `xpbd.wgsl`: predict; `XPBD_ITERATIONS` × (one per non-empty colour + spheres); finish |
 //!
 //! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
@@ -179,14 +180,31 @@ pub(crate) fn plan(
     let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
     };
+    // Both kernels bind 9 storage buffers (the WebGPU default allows 8; every Vulkan device we
+    // know allows more, and the context requests what the adapter offers).
+    let storage_needed = 9;
+    if device.limits().max_storage_buffers_per_shader_stage < storage_needed {
+        return Err(SimError::Unsupported {
+            backend: BACKEND_NAME,
+            what: format!(
+                "devices that allow fewer than {storage_needed} storage buffers per shader stage (this one allows {})",
+                device.limits().max_storage_buffers_per_shader_stage
+            ),
+            fix: "use the vulkano or cpu backend".into(),
+        });
+    }
     let max_x = device.limits().max_compute_workgroups_per_dimension;
     let vertices = workgroups(data.positions.len() as u32, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let name = ["A", "B"];
     match scene.integrator {
-        Integrator::SemiImplicitEuler | Integrator::VelocityVerlet => {
+        Integrator::SemiImplicitEuler | Integrator::VelocityVerlet | Integrator::RungeKutta4 => {
             let ranges = init("cloth spring ranges", bytemuck::cast_slice(&data.spring_ranges), storage);
             let ends = init("cloth spring ends", bytemuck::cast_slice(&data.spring_ends), storage);
+            let rk4 = scene.integrator == Integrator::RungeKutta4;
+            // RK4's per-vertex start state and sums (a placeholder for the other integrators).
+            let scratch_bytes = if rk4 { 64 * data.positions.len() } else { 64 };
+            let rk4_scratch = init("cloth RK4 scratch", &vec![0u8; scratch_bytes], storage);
             let kernel = Kernel::new(
                 device,
                 scene,
@@ -203,59 +221,98 @@ pub(crate) fn plan(
                     Binding::Storage { read_only: false }, // positions out
                     Binding::Storage { read_only: false }, // velocities out
                     Binding::Storage { read_only: false }, // deepest penetration
+                    Binding::Storage { read_only: false }, // RK4 scratch
                 ],
             );
             let group = |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4]| {
                 kernel.bind_group(
                     &label,
-                    &[&state.params, &state.spheres, &ranges, &ends, x_in, v_in, x_out, v_out, &state.max_penetration],
+                    &[
+                        &state.params,
+                        &state.spheres,
+                        &ranges,
+                        &ends,
+                        x_in,
+                        v_in,
+                        x_out,
+                        v_out,
+                        &state.max_penetration,
+                        &rk4_scratch,
+                    ],
                 )
             };
-            if scene.integrator == Integrator::SemiImplicitEuler {
-                let groups = [0, 1].map(|k| {
-                    group(format!("cloth substep {} -> {}", name[k], name[1 - k]), [&p[k], &v[k], &p[1 - k], &v[1 - k]])
-                });
-                return Ok(SubstepPlan {
-                    pipelines: vec![kernel.pipeline("cloth Euler substep pipeline", ("STAGE", 0))],
-                    passes: vec![Pass { pipeline: 0, groups, workgroups: vertices, dynamic_offset: None }],
-                });
+            let pass = |pipeline: usize, groups: [wgpu::BindGroup; 2]| Pass {
+                pipeline,
+                groups,
+                workgroups: vertices,
+                dynamic_offset: None,
+            };
+            match scene.integrator {
+                Integrator::SemiImplicitEuler => {
+                    let groups = [0, 1].map(|k| {
+                        group(
+                            format!("cloth substep {} -> {}", name[k], name[1 - k]),
+                            [&p[k], &v[k], &p[1 - k], &v[1 - k]],
+                        )
+                    });
+                    Ok(SubstepPlan {
+                        pipelines: vec![kernel.pipeline("cloth Euler substep pipeline", ("STAGE", 0))],
+                        passes: vec![pass(0, groups)],
+                    })
+                }
+                Integrator::VelocityVerlet => {
+                    // Verlet's half-step velocities, and a sink for the positions its second
+                    // kick does not write (a binding must not alias another of the same dispatch).
+                    let v_half =
+                        init("cloth velocities (Verlet half step)", bytemuck::cast_slice(&data.velocities), storage);
+                    let sink = init("cloth positions sink (Verlet second kick)", &[0u8; 16], storage);
+                    let first = [0, 1].map(|k| {
+                        group(
+                            format!("cloth Verlet kick and drift {} -> {}", name[k], name[1 - k]),
+                            [&p[k], &v[k], &p[1 - k], &v_half],
+                        )
+                    });
+                    let second = [0, 1].map(|k| {
+                        group(
+                            format!("cloth Verlet second kick -> {}", name[1 - k]),
+                            [&p[1 - k], &v_half, &sink, &v[1 - k]],
+                        )
+                    });
+                    Ok(SubstepPlan {
+                        pipelines: vec![
+                            kernel.pipeline("cloth Verlet kick and drift pipeline", ("STAGE", 1)),
+                            kernel.pipeline("cloth Verlet second kick pipeline", ("STAGE", 2)),
+                        ],
+                        passes: vec![pass(0, first), pass(1, second)],
+                    })
+                }
+                _ => {
+                    // RK4's stage states alternate between a scratch state S and the output
+                    // buffer 1 - k: k -> S -> 1-k -> S -> 1-k.
+                    let s_x = init("cloth RK4 stage positions", bytemuck::cast_slice(&data.positions), storage);
+                    let s_v = init("cloth RK4 stage velocities", bytemuck::cast_slice(&data.velocities), storage);
+                    let stage = |n: u32| {
+                        [0, 1].map(|k| {
+                            let (out_x, out_v) = (&p[1 - k], &v[1 - k]);
+                            let buffers = match n {
+                                1 => [&p[k], &v[k], &s_x, &s_v],
+                                2 => [&s_x, &s_v, out_x, out_v],
+                                3 => [out_x, out_v, &s_x, &s_v],
+                                _ => [&s_x, &s_v, out_x, out_v],
+                            };
+                            group(format!("cloth RK4 stage {n} (state {})", name[k]), buffers)
+                        })
+                    };
+                    Ok(SubstepPlan {
+                        pipelines: (1..=4)
+                            .map(|n| kernel.pipeline(&format!("cloth RK4 stage {n} pipeline"), ("STAGE", 2 + n)))
+                            .collect(),
+                        passes: (1..=4).map(|n| pass(n as usize - 1, stage(n))).collect(),
+                    })
+                }
             }
-            // Verlet's half-step velocities, and a sink for the positions its second kick does
-            // not write (a binding must not alias another of the same dispatch).
-            let v_half = init("cloth velocities (Verlet half step)", bytemuck::cast_slice(&data.velocities), storage);
-            let sink = init("cloth positions sink (Verlet second kick)", &[0u8; 16], storage);
-            let first = [0, 1].map(|k| {
-                group(
-                    format!("cloth Verlet kick and drift {} -> {}", name[k], name[1 - k]),
-                    [&p[k], &v[k], &p[1 - k], &v_half],
-                )
-            });
-            let second = [0, 1].map(|k| {
-                group(format!("cloth Verlet second kick -> {}", name[1 - k]), [&p[1 - k], &v_half, &sink, &v[1 - k]])
-            });
-            Ok(SubstepPlan {
-                pipelines: vec![
-                    kernel.pipeline("cloth Verlet kick and drift pipeline", ("STAGE", 1)),
-                    kernel.pipeline("cloth Verlet second kick pipeline", ("STAGE", 2)),
-                ],
-                passes: vec![
-                    Pass { pipeline: 0, groups: first, workgroups: vertices, dynamic_offset: None },
-                    Pass { pipeline: 1, groups: second, workgroups: vertices, dynamic_offset: None },
-                ],
-            })
         }
         Integrator::Xpbd => {
-            let storage_needed = 9;
-            if device.limits().max_storage_buffers_per_shader_stage < storage_needed {
-                return Err(SimError::Unsupported {
-                    backend: BACKEND_NAME,
-                    what: format!(
-                        "XPBD on this device: it binds {storage_needed} storage buffers, the device allows {}",
-                        device.limits().max_storage_buffers_per_shader_stage
-                    ),
-                    fix: "use a force-based integrator (SemiImplicitEuler, VelocityVerlet) or the cpu backend".into(),
-                });
-            }
             let constraints = init("cloth XPBD constraints", bytemuck::cast_slice(&data.constraints), storage);
             let lambdas = init("cloth XPBD multipliers", &vec![0u8; 4 * data.constraints.len()], storage);
             let corrections = init("cloth XPBD normal corrections", &vec![0u8; 4 * data.positions.len()], storage);
@@ -329,10 +386,5 @@ pub(crate) fn plan(
             passes.push(pass(3, vertices, 0));
             Ok(SubstepPlan { pipelines, passes })
         }
-        other => Err(SimError::Unsupported {
-            backend: BACKEND_NAME,
-            what: format!("the {other:?} integrator"),
-            fix: "use the cpu backend, or integrator: SemiImplicitEuler, VelocityVerlet or Xpbd".into(),
-        }),
     }
 }

@@ -23,7 +23,7 @@ pub struct WgpuSimulator {
     current: usize,
     /// `w` of each vertex's position: 1 free, 0 pinned (kept to rebuild positions in `write_state`).
     free: Vec<f32>,
-    /// GPU time of each advance, when the device has timestamp queries.
+    /// GPU time of each advance, when timing is on (`set_gpu_timing`) and the device can.
     timer: Option<GpuTimer>,
     /// GPU seconds already read from a full timer and not yet taken.
     timed_seconds: f64,
@@ -53,11 +53,10 @@ impl WgpuSimulator {
     ///
     /// # Errors
     /// [`SimError::Scene`] for an invalid scene, [`SimError::TooLarge`] when a buffer exceeds the
-    /// device's limits, [`SimError::Unsupported`] for an integrator this backend does not run,
+    /// device's limits, [`SimError::Unsupported`] when the device lacks what a kernel needs,
     /// [`SimError::Device`] when creating the GPU objects fails.
     pub fn on_device(scene: &Scene, context: GpuContext) -> Result<Self, SimError> {
         scene.validate()?;
-        SimError::require_gpu_integrator(BACKEND_NAME, scene)?;
         check_limits(scene, &context.device.limits())?;
         let model = ClothModel::new(scene);
         let data = GpuBuffers::new(&model);
@@ -108,7 +107,7 @@ impl WgpuSimulator {
             plan,
             buffers,
             current: 0,
-            timer: GpuTimer::new(device, &context.queue),
+            timer: None,
             timed_seconds: 0.0,
             time_s: 0.0,
             substeps_run: 0,
@@ -332,6 +331,15 @@ impl Simulator for WgpuSimulator {
 
     fn last_advance_counts(&self) -> AdvanceCounts {
         self.last_advance
+    }
+
+    fn set_gpu_timing(&mut self, on: bool) -> bool {
+        if !on {
+            self.timer = None;
+        } else if self.timer.is_none() {
+            self.timer = GpuTimer::new(&self.context.device, &self.context.queue);
+        }
+        self.timer.is_some()
     }
 
     fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {
