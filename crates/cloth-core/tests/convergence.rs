@@ -1,10 +1,14 @@
 //! Each integrator's measured order of accuracy on a smooth scene without contact.
+//!
+//! XPBD is included: on this undamped scene, with small steps its Gauss–Seidel sweeps converge
+//! (the compliance `1/(k Δt²)` dominates), so it approaches implicit Euler, a first-order method.
 
 use cloth_core::scene::{ClothSpec, Corner, Orientation, Pin, Substeps, TimeSpec};
 use cloth_core::{CpuSimulatorF64, Effect, Integrator, Scene, Simulator, stability};
 
 /// A hanging 8 x 8 cloth with gravity and the three spring kinds, no damping and no contact:
-/// smooth, conservative forces, where every integrator shows its theoretical order.
+/// smooth, conservative forces, where every integrator shows its theoretical order (XPBD, which
+/// does not model spring damping, needs the undamped scene too).
 fn smooth_scene(integrator: Integrator, duration: f64, substeps: u32) -> Scene {
     Scene {
         cloth: ClothSpec {
@@ -44,7 +48,7 @@ fn measured_orders_match_the_theory() {
     let h_max = stability::stable_substep(&probe);
     let coarse = (duration / (0.5 * h_max)).ceil() as u32;
     let reference = positions_after(&smooth_scene(Integrator::RungeKutta4, duration, coarse * 4 * 64));
-    for integrator in Integrator::EXPLICIT {
+    for integrator in Integrator::ALL {
         let errors: Vec<f64> = [1, 2, 4]
             .iter()
             .map(|k| max_error(&positions_after(&smooth_scene(integrator, duration, coarse * k)), &reference))

@@ -59,3 +59,15 @@ fn measured_stability_limits_are_within_20_percent_of_the_spectral_prediction() 
         assert!((0.8..=1.2).contains(&ratio), "{integrator:?}: measured/predicted = {ratio}");
     }
 }
+
+/// XPBD has no stability limit to predict (`spectral_stable_substep` is infinite for it): what
+/// can be measured is that it stays bounded at 10, 100 and 1000 times the explicit limit.
+#[test]
+fn xpbd_stays_bounded_far_beyond_the_explicit_limit() {
+    let explicit = stability::spectral_stable_substep(&ClothModel::new(&scene(Integrator::SemiImplicitEuler)));
+    let base = scene(Integrator::Xpbd);
+    assert!(stability::spectral_stable_substep(&ClothModel::new(&base)).is_infinite());
+    for factor in [10.0, 100.0, 1000.0] {
+        assert!(is_stable(&base, factor * explicit), "XPBD diverged at {factor} times the explicit limit");
+    }
+}
