@@ -9,7 +9,8 @@
 //!   it as two dispatches per substep (the shaders' `STAGE` constant: kick and drift, then kick).
 //! * [`Integrator::RungeKutta4`]: the classical four-stage method on `(x, v)`. Fourth order, not
 //!   symplectic (it slowly dissipates energy), stable for `Δt < 2√2/ω` on an undamped spring.
-//!   CPU reference only; the GPU backends refuse it with [`crate::SimError::Unsupported`].
+//!   The GPU backends run it as four dispatches per substep (`STAGE` 3 to 6), keeping the
+//!   substep's start state and the running sums per vertex.
 //! * [`Integrator::Xpbd`]: extended position-based dynamics. Gravity and drag predict the
 //!   positions, then [`XPBD_ITERATIONS`] Gauss–Seidel sweeps project every spring with the
 //!   compliance `α = 1/k` (so a spring of stiffness `k` behaves as Hooke's law in the limit of
@@ -17,7 +18,9 @@
 //!   `(x' − x)/Δt`. Stable at any step; first order; springs' damping is not modelled (the method
 //!   dissipates by itself). Friction keeps the brief's Coulomb meaning on the contact's
 //!   displacement: the tangential velocity is cut by at most `c_f` times the normal correction's
-//!   velocity, and stopped when that suffices. CPU reference only.
+//!   velocity, and stopped when that suffices. The springs are projected colour by colour
+//!   ([`crate::coloring`]): on the GPU one dispatch per colour, on the CPU the same order, so both
+//!   compute the same thing.
 //!
 //! Contact and friction keep the brief's meaning under every integrator: they are forces of the
 //! state each stage evaluates. The friction's "stop within this step" term uses the step its
@@ -79,6 +82,11 @@ impl Integrator {
             Integrator::RungeKutta4 => 4,
             Integrator::Xpbd => XPBD_ITERATIONS,
         }
+    }
+
+    /// The integrator of a short name ([`Integrator::name`]), if any.
+    pub fn from_name(name: &str) -> Option<Integrator> {
+        Integrator::ALL.into_iter().find(|i| i.name() == name)
     }
 
     /// Short name for tables and file names.

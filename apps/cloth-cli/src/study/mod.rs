@@ -1,0 +1,223 @@
+//! `cloth study accuracy`: what accuracy costs in time.
+//!
+//! Sweeps backend × integrator × substeps per frame over a fixed simulated time and compares
+//! every run's final positions with a reference run: the f64 CPU reference with RK4 and 8 times
+//! the finest step of the sweep ([`measure`]). Prints a table, writes a CSV and a plot of error
+//! against cost (SVG and PNG, [`plot`]), measures each integrator's largest stable step by
+//! bisection against the bound the core predicts ([`bisection`]), and with `--report` writes the
+//! Markdown report ([`report`]) that `docs/accuracy.md` is.
+
+mod bisection;
+mod measure;
+mod plot;
+mod report;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use cloth_backends as backends;
+use cloth_core::{Integrator, Scene};
+use indicatif::{ProgressBar, ProgressStyle};
+
+pub use measure::Row;
+
+/// Options of `cloth study accuracy`.
+#[derive(clap::Args)]
+pub struct AccuracyArgs {
+    /// Scene to study (default: scenes/hanging.ron, smooth and without contact).
+    scene: Option<PathBuf>,
+    /// Backends to measure (comma-separated): `cpu` runs f32, `cpu-f64` f64, `wgpu` and `vulkano`
+    /// the GPU kernels.
+    #[arg(long, alias = "backend", value_delimiter = ',', default_values_t = vec!["cpu".to_string(), "cpu-f64".to_string()])]
+    backends: Vec<String>,
+    /// Integrators to sweep (comma-separated: euler, verlet, rk4, xpbd).
+    #[arg(long, value_delimiter = ',', default_values_t = Integrator::ALL.map(|i| i.name().to_string()).to_vec())]
+    integrators: Vec<String>,
+    /// Simulated time of every run, s.
+    #[arg(long, default_value_t = 0.5)]
+    duration: f64,
+    /// Substeps per frame to sweep (comma-separated).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![4u32, 8, 16, 32, 64])]
+    substeps: Vec<u32>,
+    /// Grid resolution override, e.g. 16x16.
+    #[arg(long, value_parser = crate::parse_grid)]
+    grid: Option<[u32; 2]>,
+    /// Adapter name filter for the GPU backends.
+    #[arg(long)]
+    adapter: Option<String>,
+    /// CSV output; the plot is written beside it (same name, .svg and .png).
+    #[arg(long, default_value = "out/accuracy.csv")]
+    csv: PathBuf,
+    /// Also write the Markdown report to this file (e.g. docs/accuracy.md), with the CSV and
+    /// the plot copied beside it.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Skip the bisection of the largest stable step.
+    #[arg(long)]
+    no_bisection: bool,
+}
+
+/// Everything one study measured, for the plot and the report.
+pub struct Study {
+    /// The scene every run starts from (its grid overridden if asked).
+    pub scene: Scene,
+    /// Where the scene came from.
+    pub scene_path: PathBuf,
+    /// Frames of every run.
+    pub frames: u32,
+    /// Substeps per frame of the reference run.
+    pub reference_substeps: u32,
+    /// Every run, in sweep order.
+    pub rows: Vec<Row>,
+    /// `(backend, adapter in words)` for each backend that ran.
+    pub adapters: Vec<(String, String)>,
+    /// Runs that could not start, `(backend, integrator, reason)`.
+    pub skipped: Vec<(String, String, String)>,
+    /// The largest stable step of each integrator on each backend.
+    pub limits: Vec<bisection::Limit>,
+}
+
+fn parse_integrators(names: &[String]) -> Result<Vec<Integrator>> {
+    names
+        .iter()
+        .map(|n| {
+            Integrator::from_name(n).with_context(|| {
+                let all: Vec<&str> = Integrator::ALL.iter().map(|i| i.name()).collect();
+                format!("unknown integrator '{n}': choose among {}", all.join(", "))
+            })
+        })
+        .collect()
+}
+
+fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} runs (eta {eta})")
+            .expect("progress template is valid")
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+pub fn accuracy(args: AccuracyArgs) -> Result<()> {
+    let scene_path = args.scene.clone().unwrap_or_else(|| PathBuf::from("scenes/hanging.ron"));
+    let mut base = Scene::load(&scene_path).with_context(|| format!("cannot use scene {}", scene_path.display()))?;
+    if let Some(g) = args.grid {
+        base.cloth.resolution = g;
+    }
+    if !(args.duration.is_finite() && args.duration > 0.0) {
+        bail!("--duration must be a positive number of seconds (got {})", args.duration);
+    }
+    if args.substeps.is_empty() || args.substeps.contains(&0) {
+        bail!("--substeps needs at least one count, each at least 1 (got {:?})", args.substeps);
+    }
+    let integrators = parse_integrators(&args.integrators)?;
+    let chosen: Vec<backends::Backend> =
+        args.backends.iter().map(|n| backends::find(n).map_err(anyhow::Error::msg)).collect::<Result<_>>()?;
+    let frames = (args.duration / base.time.frame_dt).round().max(1.0) as u32;
+    let finest = args.substeps.iter().copied().max().unwrap_or(64);
+    let reference_substeps = finest * 8;
+    eprintln!(
+        "reference: f64 CPU, RK4, {reference_substeps} substeps per frame, {frames} frames of {:.4} s",
+        base.time.frame_dt
+    );
+    let reference = measure::Reference::new(&base, frames, reference_substeps)?;
+
+    measure::print_header();
+    let runs = (chosen.len() * integrators.len() * args.substeps.len()) as u64;
+    let bar = progress_bar(runs, "runs");
+    let mut study = Study {
+        scene: base.clone(),
+        scene_path: scene_path.clone(),
+        frames,
+        reference_substeps,
+        rows: Vec::new(),
+        adapters: Vec::new(),
+        skipped: Vec::new(),
+        limits: Vec::new(),
+    };
+    for backend in &chosen {
+        for &integrator in &integrators {
+            for (done, &n) in args.substeps.iter().enumerate() {
+                bar.set_message(format!("{} {} {n}", backend.name, integrator.name()));
+                match measure::run(backend, args.adapter.as_deref(), &base, integrator, n, frames, &reference) {
+                    Ok((row, adapter)) => {
+                        bar.suspend(|| row.print());
+                        if !study.adapters.iter().any(|(b, _)| b == backend.name) {
+                            study.adapters.push((backend.name.to_string(), adapter));
+                        }
+                        study.rows.push(row);
+                    }
+                    Err(measure::RunError::Skipped(reason)) => {
+                        bar.suspend(|| println!("{:<8} {:<7} skipped: {reason}", backend.name, integrator.name()));
+                        study.skipped.push((backend.name.to_string(), integrator.name().to_string(), reason));
+                        bar.inc((args.substeps.len() - done) as u64);
+                        break;
+                    }
+                    Err(measure::RunError::Failed(e)) => {
+                        bar.finish_and_clear();
+                        return Err(e);
+                    }
+                }
+                bar.inc(1);
+            }
+        }
+    }
+    bar.finish_and_clear();
+
+    if !args.no_bisection {
+        println!(
+            "\nlargest stable substep (bisection, 2000 substeps from the scene's start) against the predictions: \
+             the spectral estimate (power iteration on M⁻¹K) and the safe Gershgorin bound:"
+        );
+        for backend in &chosen {
+            if study.skipped.iter().any(|(b, _, _)| b == backend.name)
+                && !study.adapters.iter().any(|(b, _)| b == backend.name)
+            {
+                continue;
+            }
+            for &integrator in &integrators {
+                let limit = bisection::largest_stable_substep(backend, args.adapter.as_deref(), &base, integrator)?;
+                println!("  {limit}");
+                study.limits.push(limit);
+            }
+        }
+    }
+
+    write_csv(&study.rows, &args.csv)?;
+    println!("\nwrote {}", args.csv.display());
+    let (svg, png) = (args.csv.with_extension("svg"), args.csv.with_extension("png"));
+    plot::write(&study, &svg, &png)?;
+    println!("wrote {} and {}", svg.display(), png.display());
+    if let Some(path) = &args.report {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("accuracy");
+        let copy = |from: &Path, extension: &str| -> Result<String> {
+            let name = format!("{stem}.{extension}");
+            std::fs::copy(from, dir.join(&name))
+                .with_context(|| format!("cannot copy {} to {}", from.display(), dir.join(&name).display()))?;
+            Ok(name)
+        };
+        let files = report::Files { csv: copy(&args.csv, "csv")?, svg: copy(&svg, "svg")?, png: copy(&png, "png")? };
+        let text = report::markdown(&study, &files);
+        std::fs::write(path, text).with_context(|| format!("cannot write the report {}", path.display()))?;
+        println!("wrote the report {} (with {}, {} and {})", path.display(), files.csv, files.svg, files.png);
+    }
+    Ok(())
+}
+
+fn write_csv(rows: &[Row], path: &Path) -> Result<()> {
+    use std::io::Write;
+    if let Some(dir) = path.parent()
+        && !dir.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let mut f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    writeln!(f, "{}", Row::CSV_HEADER)?;
+    for r in rows {
+        writeln!(f, "{}", r.csv())?;
+    }
+    Ok(())
+}
