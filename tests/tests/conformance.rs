@@ -122,18 +122,27 @@ fn higher_order_integrators_match_the_reference_on_a_short_horizon(backend: &Bac
 
 /// XPBD (predict, colour-by-colour spring projections, sphere projections, friction: one
 /// dispatch per pass on the GPU) against the f32 CPU reference's XPBD, which projects the colours
-/// in the same order. The contact scene runs past the landing, so friction and the sphere
-/// projection are exercised.
-fn xpbd_matches_the_reference_on_a_short_horizon(backend: &Backend) {
-    for (name, mut scene, frames) in [
-        ("drape 7x13 through the landing", with_grid(scene("drape.ron"), [7, 13]), 20),
-        ("hanging 13x5 pinned", with_grid(scene("hanging.ron"), [13, 5]), 30),
-        ("hold 12x12 with friction", with_grid(scene("hold.ron"), [12, 12]), 14),
-    ] {
+/// in the same order.
+///
+/// Short horizon, with the f32 tolerance: a falling cloth, a hanging one, and a landing two frames
+/// after contact (as in `short_horizon_scenes`: later, which way the landing cloth buckles is
+/// decided by the last bits, and on the H100, whose compiler fuses multiply-adds, a drape five
+/// frames after landing was 1.4e-5 m from the f32 reference). Long horizon, by outcome: a drape
+/// comes to rest on the sphere, without NaN or deep penetration, its centroid within
+/// `CENTROID_TOLERANCE_M` of the reference's.
+fn xpbd_matches_the_reference(backend: &Backend) {
+    let xpbd = |mut scene: Scene| {
         scene.integrator = cloth_core::Integrator::Xpbd;
         // XPBD is stable at large steps; 10 substeps per frame keep the ~120 dispatches of each
         // substep affordable on lavapipe with the validation layer.
         scene.time.substeps = Substeps::Fixed(10);
+        scene
+    };
+    for (name, scene, frames) in [
+        ("drape 7x13 falling", xpbd(with_grid(scene("drape.ron"), [7, 13])), 12),
+        ("hanging 13x5 pinned", xpbd(with_grid(scene("hanging.ron"), [13, 5])), 30),
+        ("hold 12x12 two frames after landing", xpbd(with_grid(scene("hold.ron"), [12, 12])), 11),
+    ] {
         let Some((state, penetration)) = run(backend, &scene, frames) else { return };
         assert_eq!(state.non_finite_count(), 0, "{name}");
         let d = max_difference(&state, &reference_f32(&scene, frames));
@@ -142,15 +151,27 @@ fn xpbd_matches_the_reference_on_a_short_horizon(backend: &Backend) {
             backend.name
         );
         assert!(d <= F32_TOLERANCE_M, "{name}: XPBD differs from the f32 reference by {d} m");
-        if name.contains("landing") || name.contains("friction") {
+        if name.contains("landing") {
             let sphere = &scene.spheres[0];
             let touching = state.positions.iter().any(|p| {
                 let d: f64 = (0..3).map(|k| (p[k] as f64 - sphere.center[k]).powi(2)).sum::<f64>().sqrt();
-                d < sphere.radius * 1.01
+                d < sphere.radius * 1.001
             });
             assert!(touching, "{name}: the cloth should be on the sphere by frame {frames}");
         }
     }
+    let scene = xpbd(with_grid(scene("drape.ron"), [12, 12]));
+    let frames = 90;
+    let Some((state, penetration)) = run(backend, &scene, frames) else { return };
+    assert_eq!(state.non_finite_count(), 0, "XPBD drape: NaN");
+    let sphere = &scene.spheres[0];
+    assert!(penetration < 0.02 * sphere.radius, "XPBD drape: max penetration {penetration} m");
+    assert!(!is_off_the_sphere(&state, &scene), "XPBD drape: fell off, centroid {:?}", state.centroid());
+    let (c, r) = (state.centroid(), reference_f32(&scene, frames).centroid());
+    let d = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f64>().sqrt();
+    eprintln!("{}: XPBD drape 12x12, {frames} frames: centroid {d:.3e} m from the reference's", backend.name);
+    assert!(d < CENTROID_TOLERANCE_M, "XPBD drape: centroid {c:?} is {d} m from the reference {r:?}");
+    assert!(c[1] > sphere.center[1], "XPBD drape rests above the sphere's centre");
 }
 
 fn bit_exact_with_the_f32_reference(backend: &Backend) {
@@ -462,7 +483,7 @@ conformance! {
     cases: [
         short_horizon_matches_the_references,
         higher_order_integrators_match_the_reference_on_a_short_horizon,
-        xpbd_matches_the_reference_on_a_short_horizon,
+        xpbd_matches_the_reference,
         bit_exact_with_the_f32_reference,
         long_horizon_outcomes_agree,
         changing_the_grid_changes_the_vertex_count,

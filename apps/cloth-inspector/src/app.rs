@@ -41,6 +41,13 @@ impl Sim {
             Sim::Boxed(s) => s.scene(),
         }
     }
+
+    fn backend_name(&self) -> &'static str {
+        match self {
+            Sim::Shared(s) => s.backend_name(),
+            Sim::Boxed(s) => s.backend_name(),
+        }
+    }
 }
 
 /// Options from the command line.
@@ -586,8 +593,9 @@ impl eframe::App for InspectorApp {
                 if let Some(sim) = self.runtime.sim.as_ref() {
                     panels::stats::show(ui, &self.runtime.stats, sim.scene());
                 }
+                let backend = self.runtime.sim.as_ref().map(Sim::backend_name).unwrap_or("cpu");
                 egui::CollapsingHeader::new("Accuracy study")
-                    .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene));
+                    .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene, backend));
             });
         });
         if !self.runtime.notices.is_empty() {

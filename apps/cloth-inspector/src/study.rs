@@ -1,19 +1,20 @@
-//! A quick accuracy study run in the background (CPU backends), and the last CLI study's CSV.
+//! A quick accuracy study run in the background on any backend, and the last CLI study's CSV.
 //!
 //! The full study is `cloth study accuracy` (docs/accuracy.md); this one sweeps a small copy of
 //! the current scene so a student sees, in seconds, how each integrator's error falls with cost.
 
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use cloth_core::{CpuSimulator, CpuSimulatorF64, Integrator, Scene, Simulator, Substeps};
+use cloth_core::{CpuSimulatorF64, Integrator, Scene, Simulator, Substeps};
 
 /// One point of a study: an integrator at one step, its cost and its error.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StudyPoint {
     /// Series label, e.g. "cpu euler".
     pub series: String,
-    /// Wall-clock ms per simulated second.
+    /// Cost: ms per simulated second (GPU timestamps where the backend has them, else wall clock).
     pub ms_per_simulated_s: f64,
     /// RMS position error against the reference, m.
     pub rms_error_m: f64,
@@ -35,8 +36,9 @@ pub struct StudyProgress {
 /// Substeps per frame of the quick sweep.
 const QUICK_SUBSTEPS: [u32; 3] = [8, 16, 32];
 
-/// Runs the quick study on a copy of `scene` (at most 12 x 12, 0.25 s), updating `progress`.
-pub fn quick_study(scene: &Scene, progress: &Mutex<StudyProgress>) {
+/// Runs the quick study on a copy of `scene` (at most 12 x 12, 0.25 s) on `backend`, updating
+/// `progress`.
+pub fn quick_study(scene: &Scene, backend: &str, progress: &Mutex<StudyProgress>) {
     let mut base = scene.clone();
     base.cloth.resolution = [base.cloth.resolution[0].min(12), base.cloth.resolution[1].min(12)];
     let frames = (0.25 / base.time.frame_dt).round().max(1.0) as u32;
@@ -63,13 +65,24 @@ pub fn quick_study(scene: &Scene, progress: &Mutex<StudyProgress>) {
         }
     };
     set(&|p| p.done += 1);
+    let factory = match cloth_backends::find(backend) {
+        Ok(b) => b.create,
+        Err(e) => {
+            set(&|p| p.error = Some(e.clone()));
+            return;
+        }
+    };
     for integrator in Integrator::ALL {
         for n in QUICK_SUBSTEPS {
-            let point = CpuSimulator::new(&with(integrator, n)).ok().and_then(|mut sim| {
+            let point = factory(&with(integrator, n), None).ok().and_then(|mut sim| {
+                let timed = sim.set_gpu_timing(true);
                 let start = Instant::now();
-                sim.advance(frames).ok()?;
-                let seconds = start.elapsed().as_secs_f64();
+                for _ in 0..frames {
+                    sim.advance(1).ok()?;
+                }
                 let state = sim.read_state().ok()?;
+                let wall = start.elapsed().as_secs_f64();
+                let seconds = if timed { sim.take_gpu_seconds().ok().flatten().unwrap_or(wall) } else { wall };
                 let sum: f64 = state
                     .positions
                     .iter()
@@ -78,7 +91,7 @@ pub fn quick_study(scene: &Scene, progress: &Mutex<StudyProgress>) {
                     .sum();
                 let rms = (sum / reference.len().max(1) as f64).sqrt();
                 rms.is_finite().then(|| StudyPoint {
-                    series: format!("cpu {}", integrator.name()),
+                    series: format!("{backend} {}", integrator.name()),
                     ms_per_simulated_s: seconds * 1e3 / (frames as f64 * base.time.frame_dt),
                     rms_error_m: rms,
                 })
@@ -93,16 +106,25 @@ pub fn quick_study(scene: &Scene, progress: &Mutex<StudyProgress>) {
     }
 }
 
-/// Starts the quick study on a background thread; the returned progress fills as it runs.
-pub fn spawn_quick_study(scene: &Scene) -> Arc<Mutex<StudyProgress>> {
+/// Starts the quick study on `backend` on a background thread; the returned progress fills as
+/// it runs.
+pub fn spawn_quick_study(scene: &Scene, backend: &str) -> Arc<Mutex<StudyProgress>> {
     let progress = Arc::new(Mutex::new(StudyProgress::default()));
-    let (scene, shared) = (scene.clone(), progress.clone());
-    std::thread::spawn(move || quick_study(&scene, &shared));
+    let (scene, backend, shared) = (scene.clone(), backend.to_string(), progress.clone());
+    std::thread::spawn(move || quick_study(&scene, &backend, &shared));
     progress
 }
 
-/// Reads the points of a CSV written by `cloth study accuracy` (finite rows).
-pub fn load_csv(path: &std::path::Path) -> Result<Vec<StudyPoint>, String> {
+/// The last study's CSV: `out/accuracy.csv` (the last `cloth study accuracy` run here) if it
+/// exists, else `docs/accuracy.csv` (the one the report in the docs shows).
+pub fn last_study_csv() -> Option<PathBuf> {
+    let docs = crate::panels::scene::scenes_dir().join("../docs/accuracy.csv");
+    [Path::new("out/accuracy.csv").to_path_buf(), docs].into_iter().find(|p| p.is_file())
+}
+
+/// Reads the points of a CSV written by `cloth study accuracy` (finite rows; the cost is column
+/// 11, `cost_ms_per_simulated_s`).
+pub fn load_csv(path: &Path) -> Result<Vec<StudyPoint>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     let mut points = Vec::new();
     for (n, line) in text.lines().enumerate().skip(1) {
@@ -131,10 +153,18 @@ mod tests {
     fn quick_study_measures_every_integrator_and_higher_order_is_more_accurate() {
         let progress = Mutex::new(StudyProgress::default());
         let scene = Scene::load(&crate::panels::scene::scenes_dir().join("hanging.ron")).unwrap();
-        quick_study(&scene, &progress);
+        quick_study(&scene, "cpu", &progress);
         let p = progress.lock().unwrap();
         assert_eq!((p.done, p.total, p.error.clone()), (p.total, 13, None));
         let error = |series: &str| p.points.iter().find(|q| q.series == series).map(|q| q.rms_error_m).unwrap();
         assert!(error("cpu rk4") < error("cpu verlet") && error("cpu verlet") < error("cpu euler"), "{:?}", p.points);
+    }
+
+    #[test]
+    fn the_committed_study_csv_loads() {
+        let path = crate::panels::scene::scenes_dir().join("../docs/accuracy.csv");
+        let points = load_csv(&path).unwrap();
+        assert!(points.iter().any(|p| p.series.ends_with("xpbd")), "{points:?}");
+        assert!(points.iter().all(|p| p.ms_per_simulated_s > 0.0 && p.rms_error_m > 0.0));
     }
 }

@@ -1,5 +1,5 @@
-//! [`GpuTimer`]: GPU time of each advance, from timestamps written before and after its
-//! dispatches, read only when asked.
+//! [`GpuTimer`]: GPU time of each command buffer of an advance, from timestamps written before
+//! and after its dispatches, read only when asked.
 
 use std::sync::Arc;
 
@@ -8,10 +8,10 @@ use vulkano::device::Queue;
 use vulkano::query::{QueryPool, QueryPoolCreateInfo, QueryResultFlags, QueryType};
 use vulkano::sync::PipelineStage;
 
-/// Timestamp pairs held in the pool before they must be read: one per advance.
+/// Timestamp pairs held in the pool before they must be read: one per command buffer.
 const CAPACITY: u32 = 256;
 
-/// A ring of timestamp pairs, one per advance.
+/// A ring of timestamp pairs, one per command buffer of the advances.
 pub(crate) struct GpuTimer {
     pool: Arc<QueryPool>,
     /// Nanoseconds per timestamp tick.

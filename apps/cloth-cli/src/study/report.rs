@@ -226,14 +226,22 @@ pub fn markdown(study: &Study, files: &Files) -> String {
     if damped {
         let _ = writeln!(
             md,
-            "\nThis scene has velocity-dependent forces (spring damping or air drag), and two methods \
-             show it. Velocity Verlet evaluates them with the velocity at hand (the half-step one in \
-             its second kick), a first-order error in those terms: its slope falls from 2 towards 1 \
-             as the step shrinks and that term takes over. XPBD models no spring damping at all, so \
-             it converges to a different (undamped, or iteration-softened) motion and its error \
-             levels off instead of falling."
+            "\nThis scene has velocity-dependent forces (spring damping or air drag). Velocity Verlet \
+             evaluates them with the velocity at hand (the half-step one in its second kick), a \
+             first-order error in those terms: its slope falls from 2 towards 1 as the step shrinks and \
+             that term takes over."
         );
     }
+    let _ = writeln!(
+        md,
+        "\nXPBD's error is not only the truncation of a first-order method: it models no spring \
+         damping, and with {} iterations its springs are softer than `k` at large steps. In f32 its \
+         velocities come from position differences, `(x' − x)/Δt`, so the rounding of a position \
+         (1.2e-7 m near 1.5 m) becomes a velocity error of about 1.2e-7/Δt m/s in every substep: at \
+         small steps the f32 error grows again (a negative slope) while f64 keeps converging. Use \
+         XPBD for large steps, not small ones.",
+        cloth_core::integrator::XPBD_ITERATIONS
+    );
     let _ = writeln!(
         md,
         "\nThe CI test `crates/cloth-core/tests/convergence.rs` checks every integrator's order \

@@ -15,24 +15,50 @@ pub struct StudyPanel {
     running: Option<Arc<Mutex<StudyProgress>>>,
     points: Vec<StudyPoint>,
     message: Option<String>,
+    /// Whether the last study's CSV was looked for (once, at the first show).
+    looked_for_last: bool,
 }
 
 impl StudyPanel {
-    pub fn show(&mut self, ui: &mut egui::Ui, scene: &cloth_core::Scene) {
+    fn load_last(&mut self) {
+        match crate::study::last_study_csv() {
+            Some(path) => match crate::study::load_csv(&path) {
+                Ok(points) => {
+                    self.points = points;
+                    self.message = Some(format!("the last study: {}", path.display()));
+                }
+                Err(e) => self.message = Some(e),
+            },
+            None => self.message = Some("no study yet: run `cloth study accuracy`, or a quick study".into()),
+        }
+    }
+
+    /// `backend` is the one running now: the quick study runs there.
+    pub fn show(&mut self, ui: &mut egui::Ui, scene: &cloth_core::Scene, backend: &str) {
+        if !self.looked_for_last {
+            self.looked_for_last = true;
+            self.load_last();
+        }
         ui.horizontal(|ui| {
             let idle = self.running.is_none();
-            if ui.add_enabled(idle, egui::Button::new("Quick study (CPU)")).on_hover_text("Every integrator at 8, 16, 32 substeps on a small copy of this scene, against an f64 RK4 reference").clicked() {
-                self.running = Some(crate::study::spawn_quick_study(scene));
+            let quick = egui::Button::new(format!("Quick study ({backend})"));
+            if ui
+                .add_enabled(idle, quick)
+                .on_hover_text(
+                    "Every integrator at 8, 16, 32 substeps on a small copy of this scene, on this backend, \
+                     against an f64 RK4 reference (in the background)",
+                )
+                .clicked()
+            {
+                self.running = Some(crate::study::spawn_quick_study(scene, backend));
                 self.message = None;
             }
-            if ui.button("Load out/accuracy.csv").on_hover_text("The last `cloth study accuracy`").clicked() {
-                match crate::study::load_csv(std::path::Path::new("out/accuracy.csv")) {
-                    Ok(points) => {
-                        self.points = points;
-                        self.message = Some("from out/accuracy.csv".into());
-                    }
-                    Err(e) => self.message = Some(e),
-                }
+            if ui
+                .button("Last study")
+                .on_hover_text("out/accuracy.csv (the last `cloth study accuracy` here), else docs/accuracy.csv")
+                .clicked()
+            {
+                self.load_last();
             }
         });
         if let Some(progress) = &self.running {
@@ -62,7 +88,7 @@ impl StudyPanel {
         for p in &self.points {
             series.entry(&p.series).or_default().push([p.ms_per_simulated_s.log10(), p.rms_error_m.log10()]);
         }
-        ui.label("log10 RMS error (m) against log10 ms per simulated second");
+        ui.label("log10 RMS error (m) against log10 ms per simulated second (GPU time on GPU backends)");
         Plot::new("study").height(180.0).legend(Legend::default()).show(ui, |plot| {
             for (name, points) in series {
                 plot.line(Line::new(name.to_string(), PlotPoints::from(points.clone())));
