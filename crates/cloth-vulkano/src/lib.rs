@@ -3,15 +3,17 @@
 //! The GLSL/SPIR-V compute backend of the cloth workbench. [`VulkanoSimulator`] implements
 //! [`cloth_core::Simulator`] with the compute shaders `shaders/glsl/cloth_step.comp` (force-based
 //! integrators) and `xpbd.comp` (XPBD), sharing `effects.glsl`, `layout.glsl` and `forces.glsl`,
-//! compiled to SPIR-V by `glslc` at build time. Effects the
-//! scene leaves out, and the workgroup size, are Vulkan specialization constants; every parameter
-//! reaches the shader through one descriptor set; one `advance` is one command buffer, one
-//! submission, and no wait.
+//! compiled to SPIR-V by `glslc` at build time. Effects the scene leaves out, and the workgroup
+//! size, are Vulkan specialization constants; every parameter reaches the shader through one
+//! descriptor set; one `advance` is one command buffer, recorded with one memory barrier between
+//! dispatches instead of vulkano's automatic tracking (`raw.rs` says why), one submission, and no
+//! wait.
 
 #![warn(missing_docs)]
 
 mod context;
 mod passes;
+mod raw;
 mod simulator;
 mod timer;
 

@@ -6,20 +6,21 @@ use std::sync::Arc;
 use cloth_core::layout::{GpuBuffers, GpuSimParams, GpuSphere, MemoryEstimate};
 use cloth_core::{AdvanceCounts, ClothModel, ClothState, Diagnostics, Scene, SimError, Simulator};
 use vulkano::buffer::{Buffer, BufferContents, BufferCreateInfo, BufferUsage, Subbuffer};
-use vulkano::command_buffer::allocator::{StandardCommandBufferAllocator, StandardCommandBufferAllocatorCreateInfo};
+use vulkano::command_buffer::allocator::StandardCommandBufferAllocator;
 use vulkano::command_buffer::{
-    AutoCommandBufferBuilder, CommandBufferInheritanceInfo, CommandBufferUsage, CopyBufferInfo,
-    PrimaryAutoCommandBuffer, SecondaryAutoCommandBuffer,
+    AutoCommandBufferBuilder, CommandBufferUsage, CopyBufferInfo, PrimaryAutoCommandBuffer,
+    PrimaryCommandBufferAbstract,
 };
 use vulkano::descriptor_set::allocator::StandardDescriptorSetAllocator;
 use vulkano::memory::allocator::{AllocationCreateInfo, MemoryTypeFilter, StandardMemoryAllocator};
 use vulkano::pipeline::{Pipeline, PipelineBindPoint};
-use vulkano::sync::GpuFuture;
 use vulkano::sync::future::FenceSignalFuture;
+use vulkano::sync::{AccessFlags, GpuFuture, PipelineStages};
 
 use crate::BACKEND_NAME;
 use crate::context::VulkanContext;
 use crate::passes::{StateBuffers, SubstepPlan};
+use crate::raw::FrameRecorder;
 use crate::timer::GpuTimer;
 
 /// The cloth simulated by GLSL compute shaders (SPIR-V) through vulkano.
@@ -29,8 +30,8 @@ pub struct VulkanoSimulator {
     /// The dispatches of one substep (see `passes.rs`); a substep leaves the new state in buffer
     /// `1 - k` when `k` is current.
     plan: SubstepPlan,
-    /// One substep's dispatches when state buffer `k` is current, recorded once.
-    substep_commands: Vec<Arc<SecondaryAutoCommandBuffer>>,
+    /// An empty automatic command buffer: the resource usage the frames report (`raw.rs`).
+    no_resources: Arc<PrimaryAutoCommandBuffer>,
     buffers: StateBuffers,
     memory: Arc<StandardMemoryAllocator>,
     commands: Arc<StandardCommandBufferAllocator>,
@@ -48,11 +49,6 @@ pub struct VulkanoSimulator {
     substeps_run: u64,
     last_advance: AdvanceCounts,
 }
-
-/// Substeps above which an `advance` of several frames is split into several command buffers
-/// (of whole frames). Measured on lavapipe: 900 substeps of XPBD in one command buffer took 330 s,
-/// frame by frame 4 s.
-const MAX_SUBSTEPS_PER_COMMAND_BUFFER: u64 = 64;
 
 fn device_error(reason: impl std::fmt::Display) -> SimError {
     SimError::Device { backend: BACKEND_NAME, reason: reason.to_string() }
@@ -93,11 +89,7 @@ impl VulkanoSimulator {
         let model = ClothModel::new(scene);
         let data = GpuBuffers::new(&model);
         let memory = Arc::new(StandardMemoryAllocator::new_default(device.clone()));
-        // Secondary buffers: the two recorded substeps.
-        let commands = Arc::new(StandardCommandBufferAllocator::new(
-            device.clone(),
-            StandardCommandBufferAllocatorCreateInfo { secondary_buffer_count: 2, ..Default::default() },
-        ));
+        let commands = Arc::new(StandardCommandBufferAllocator::new(device.clone(), Default::default()));
         let descriptors = Arc::new(StandardDescriptorSetAllocator::new(device.clone(), Default::default()));
 
         let storage = BufferUsage::STORAGE_BUFFER | BufferUsage::TRANSFER_DST | BufferUsage::TRANSFER_SRC;
@@ -133,7 +125,13 @@ impl VulkanoSimulator {
             free: data.positions.iter().map(|p| p[3]).collect(),
             scene: scene.clone(),
             plan,
-            substep_commands: Vec::new(),
+            no_resources: AutoCommandBufferBuilder::primary(
+                commands.clone(),
+                context.queue.queue_family_index(),
+                CommandBufferUsage::MultipleSubmit,
+            )
+            .and_then(|b| b.build())
+            .map_err(|e| device_error(format!("command buffer: {e}")))?,
             buffers,
             memory,
             commands,
@@ -161,7 +159,6 @@ impl VulkanoSimulator {
         }
         let cb = builder.build().map_err(|e| device_error(format!("recording the upload: {e}")))?;
         sim.submit(cb)?;
-        sim.substep_commands = vec![sim.record_substep(0)?, sim.record_substep(1)?];
         sim.context.check_validation()?;
         Ok(sim)
     }
@@ -171,78 +168,77 @@ impl VulkanoSimulator {
         &self.context
     }
 
-    /// Records one substep's dispatches, reading state buffer `current`, into a secondary command
-    /// buffer that every frame replays (`SimultaneousUse`: several times in one primary). The
-    /// automatic synchronisation then tracks one command per substep instead of one per dispatch:
-    /// its cost grows with the commands of a command buffer, and XPBD has over a hundred
-    /// dispatches per substep.
-    fn record_substep(&self, current: usize) -> Result<Arc<SecondaryAutoCommandBuffer>, SimError> {
-        let mut builder = AutoCommandBufferBuilder::secondary(
-            self.commands.clone(),
-            self.context.queue.queue_family_index(),
-            CommandBufferUsage::SimultaneousUse,
-            CommandBufferInheritanceInfo::default(),
-        )
-        .map_err(|e| device_error(format!("command buffer: {e}")))?;
-        let mut bound = None;
-        for pass in &self.plan.passes {
-            let pipeline = &self.plan.pipelines[pass.pipeline];
-            if bound != Some(pass.pipeline) {
-                builder.bind_pipeline_compute(pipeline.clone()).map_err(|e| device_error(format!("binding: {e}")))?;
-                bound = Some(pass.pipeline);
-            }
-            let set = pass.sets[current].clone();
-            match pass.dynamic_offset {
-                Some(offset) => builder.bind_descriptor_sets(
-                    PipelineBindPoint::Compute,
-                    pipeline.layout().clone(),
-                    0,
-                    set.offsets([offset]),
-                ),
-                None => builder.bind_descriptor_sets(PipelineBindPoint::Compute, pipeline.layout().clone(), 0, set),
-            }
-            .map_err(|e| device_error(format!("binding: {e}")))?;
-            // SAFETY: every kernel bounds-checks its invocation index (against the vertex count,
-            // or the colour's constraint count), and every buffer it indexes holds that many
-            // elements.
-            unsafe { builder.dispatch(pass.workgroups) }.map_err(|e| device_error(format!("dispatch: {e}")))?;
-        }
-        builder.build().map_err(|e| device_error(format!("recording a substep: {e}")))
-    }
-
     /// Records `substeps` substeps (with pending parameter writes and the timer's timestamps)
-    /// into one command buffer and submits it, without waiting.
+    /// into one command buffer, with one memory barrier between dispatches (`raw.rs`), and
+    /// submits it without waiting.
     fn record_and_submit(&mut self, substeps: u64) -> Result<(), SimError> {
         if self.timer.as_ref().is_some_and(GpuTimer::is_full) {
-            // Only after 256 command buffers without `take_gpu_seconds`: keep the measurements.
+            // Only after 256 advances without `take_gpu_seconds`: keep the measurements.
             self.read_timer()?;
             self.last_advance.host_waits += 1;
         }
-        let mut builder = self.builder()?;
+        let mut frame = FrameRecorder::begin(self.commands.clone(), self.context.queue.queue_family_index())
+            .map_err(device_error)?;
+        let rec = &mut frame.recording;
         if let Some((params, spheres)) = self.pending_parameters.take() {
-            builder
-                .update_buffer(self.buffers.params.clone(), Box::new(params))
-                .map_err(|e| device_error(format!("parameters: {e}")))?;
-            if !spheres.is_empty() {
-                let dst = self.buffers.spheres.clone().slice(0..spheres.len() as u64);
-                builder
-                    .update_buffer(dst, spheres.into_boxed_slice())
-                    .map_err(|e| device_error(format!("spheres: {e}")))?;
+            // SAFETY: the buffers live as long as the simulator, which waits for the device
+            // before dropping them.
+            unsafe {
+                rec.update_buffer(&self.buffers.params, &params)
+                    .map_err(|e| device_error(format!("parameters: {e}")))?;
+                if !spheres.is_empty() {
+                    let dst = self.buffers.spheres.clone().slice(0..spheres.len() as u64);
+                    rec.update_buffer(&dst, spheres.as_slice()).map_err(|e| device_error(format!("spheres: {e}")))?;
+                }
             }
+            frame
+                .barrier(
+                    PipelineStages::ALL_TRANSFER,
+                    AccessFlags::TRANSFER_WRITE,
+                    PipelineStages::COMPUTE_SHADER,
+                    AccessFlags::UNIFORM_READ | AccessFlags::SHADER_READ,
+                )
+                .map_err(device_error)?;
         }
         if let Some(timer) = &self.timer {
-            timer.begin(&mut builder).map_err(device_error)?;
+            timer.begin(&mut frame.recording).map_err(device_error)?;
         }
+        let mut bound = None;
         for _ in 0..substeps {
-            builder
-                .execute_commands(self.substep_commands[self.current].clone())
-                .map_err(|e| device_error(format!("recording a substep: {e}")))?;
+            for pass in &self.plan.passes {
+                let pipeline = &self.plan.pipelines[pass.pipeline];
+                let rec = &mut frame.recording;
+                // SAFETY: the pipelines and descriptor sets live as long as the simulator, which
+                // waits for the device before dropping them; every kernel bounds-checks its
+                // invocation index (against the vertex count, or the colour's constraint count),
+                // and every buffer it indexes holds that many elements.
+                unsafe {
+                    if bound != Some(pass.pipeline) {
+                        rec.bind_pipeline_compute(pipeline).map_err(|e| device_error(format!("binding: {e}")))?;
+                        bound = Some(pass.pipeline);
+                    }
+                    let offsets: &[u32] = match &pass.dynamic_offset {
+                        Some(offset) => std::slice::from_ref(offset),
+                        None => &[],
+                    };
+                    rec.bind_descriptor_sets(
+                        PipelineBindPoint::Compute,
+                        pipeline.layout(),
+                        0,
+                        &[pass.sets[self.current].as_raw()],
+                        offsets,
+                    )
+                    .map_err(|e| device_error(format!("binding: {e}")))?;
+                    rec.dispatch(pass.workgroups).map_err(|e| device_error(format!("dispatch: {e}")))?;
+                }
+                frame.between_dispatches().map_err(device_error)?;
+            }
             self.current = 1 - self.current;
         }
         if let Some(timer) = &mut self.timer {
-            timer.end(&mut builder).map_err(device_error)?;
+            timer.end(&mut frame.recording).map_err(device_error)?;
         }
-        let cb = builder.build().map_err(|e| device_error(format!("recording the frame: {e}")))?;
+        let cb = frame.end(self.no_resources.clone()).map_err(device_error)?;
         self.submit(cb)
     }
 
@@ -282,7 +278,7 @@ impl VulkanoSimulator {
     }
 
     /// Submits after the previous submission (without waiting for it).
-    fn submit(&mut self, cb: Arc<PrimaryAutoCommandBuffer>) -> Result<(), SimError> {
+    fn submit<C: PrimaryCommandBufferAbstract + 'static>(&mut self, cb: Arc<C>) -> Result<(), SimError> {
         let previous: Box<dyn GpuFuture> = match self.in_flight.take() {
             Some(mut f) => {
                 f.cleanup_finished();
@@ -343,6 +339,17 @@ impl VulkanoSimulator {
     }
 }
 
+impl Drop for VulkanoSimulator {
+    /// Waits for the last submission first: the frames' command buffers use the pipelines,
+    /// descriptor sets and buffers without vulkano tracking them (`raw.rs`), so they must outlive
+    /// the device's work.
+    fn drop(&mut self) {
+        if let Some(f) = self.in_flight.take() {
+            let _ = f.wait(None);
+        }
+    }
+}
+
 impl VulkanoSimulator {
     /// Waits for the device and adds the timer's pending pairs to `timed_seconds`.
     fn read_timer(&mut self) -> Result<(), SimError> {
@@ -386,18 +393,8 @@ impl Simulator for VulkanoSimulator {
         if per_frame == 0 || frames == 0 {
             return Ok(());
         }
-        // Whole frames per command buffer: at least one, so a frame is never split (one
-        // submission per frame at most), and few enough substeps that the automatic
-        // synchronisation, whose cost grows faster than the commands of a command buffer, stays
-        // cheap.
-        let frames_per_buffer = (MAX_SUBSTEPS_PER_COMMAND_BUFFER / per_frame).max(1) as u32;
-        let mut left = frames;
-        while left > 0 {
-            let chunk = left.min(frames_per_buffer);
-            left -= chunk;
-            self.record_and_submit(chunk as u64 * per_frame)?;
-            self.last_advance.submissions += 1;
-        }
+        self.record_and_submit(per_frame * frames as u64)?;
+        self.last_advance.submissions = 1;
         let dt = self.scene.substep_dt();
         let substeps = per_frame * frames as u64;
         for _ in 0..substeps {

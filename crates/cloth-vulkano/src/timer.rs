@@ -1,17 +1,17 @@
-//! [`GpuTimer`]: GPU time of each command buffer of an advance, from timestamps written before
-//! and after its dispatches, read only when asked.
+//! [`GpuTimer`]: GPU time of each advance, from timestamps written before and after its
+//! dispatches, read only when asked.
 
 use std::sync::Arc;
 
-use vulkano::command_buffer::{AutoCommandBufferBuilder, PrimaryAutoCommandBuffer};
+use vulkano::command_buffer::RecordingCommandBuffer;
 use vulkano::device::Queue;
 use vulkano::query::{QueryPool, QueryPoolCreateInfo, QueryResultFlags, QueryType};
 use vulkano::sync::PipelineStage;
 
-/// Timestamp pairs held in the pool before they must be read: one per command buffer.
+/// Timestamp pairs held in the pool before they must be read: one per advance.
 const CAPACITY: u32 = 256;
 
-/// A ring of timestamp pairs, one per command buffer of the advances.
+/// A ring of timestamp pairs, one per advance.
 pub(crate) struct GpuTimer {
     pool: Arc<QueryPool>,
     /// Nanoseconds per timestamp tick.
@@ -43,26 +43,24 @@ impl GpuTimer {
     }
 
     /// Records the start timestamp of the next advance (before its dispatches).
-    pub(crate) fn begin(&self, builder: &mut AutoCommandBufferBuilder<PrimaryAutoCommandBuffer>) -> Result<(), String> {
+    pub(crate) fn begin(&self, recording: &mut RecordingCommandBuffer) -> Result<(), String> {
         let first = 2 * self.pending;
         // SAFETY: the two queries are reset just before, in the same command buffer, and are not
-        // read until the command buffer has completed (`take` runs after a wait).
+        // read until the command buffer has completed (`take` runs after a wait); the pool lives
+        // as long as the simulator, which waits for the device before dropping it.
         unsafe {
-            builder.reset_query_pool(self.pool.clone(), first..first + 2).map_err(|e| format!("{e}"))?;
-            builder.write_timestamp(self.pool.clone(), first, PipelineStage::TopOfPipe).map_err(|e| format!("{e}"))?;
+            recording.reset_query_pool(&self.pool, first..first + 2).map_err(|e| format!("{e}"))?;
+            recording.write_timestamp(&self.pool, first, PipelineStage::TopOfPipe).map_err(|e| format!("{e}"))?;
         }
         Ok(())
     }
 
     /// Records the end timestamp of the advance (after its dispatches).
-    pub(crate) fn end(
-        &mut self,
-        builder: &mut AutoCommandBufferBuilder<PrimaryAutoCommandBuffer>,
-    ) -> Result<(), String> {
+    pub(crate) fn end(&mut self, recording: &mut RecordingCommandBuffer) -> Result<(), String> {
         // SAFETY: as in `begin`.
         unsafe {
-            builder
-                .write_timestamp(self.pool.clone(), 2 * self.pending + 1, PipelineStage::BottomOfPipe)
+            recording
+                .write_timestamp(&self.pool, 2 * self.pending + 1, PipelineStage::BottomOfPipe)
                 .map_err(|e| format!("{e}"))?;
         }
         self.pending += 1;
