@@ -99,6 +99,17 @@ fn orders(study: &Study, backend: &str, integrator: Integrator) -> Vec<(f64, boo
         .collect()
 }
 
+fn has_spheres(scene: &cloth_core::Scene) -> bool {
+    scene.effects.contains(cloth_core::Effect::SphereContact) && !scene.spheres.is_empty()
+}
+
+/// Dispatches of one XPBD substep of `scene` on the GPU backends (as their `passes.rs` plan them).
+fn xpbd_dispatches(scene: &cloth_core::Scene) -> u32 {
+    let colors = cloth_core::ClothModel::new(scene).spring_colors();
+    let non_empty = (0..cloth_core::coloring::COLOR_COUNT).filter(|&c| !colors.color(c).is_empty()).count() as u32;
+    2 + cloth_core::integrator::XPBD_ITERATIONS * (non_empty + u32::from(has_spheres(scene)))
+}
+
 pub fn markdown(study: &Study, files: &Files) -> String {
     let mut md = String::new();
     let scene = &study.scene;
@@ -300,20 +311,25 @@ pub fn markdown(study: &Study, files: &Files) -> String {
         md,
         "* **Semi-implicit Euler** (the brief's) costs one force evaluation per substep and is first \
          order: halving the step halves the error. **Velocity Verlet** costs two and is second order; \
-         **RK4** costs four and is fourth order, but dissipates energy slowly and is not symplectic. \
-         On the GPU each evaluation is one dispatch over the vertices.\n\
-         * **XPBD** projects each spring as a constraint with compliance `1/k` ({} Gauss–Seidel sweeps \
-         per substep, colour by colour: one dispatch per colour on the GPU). It is stable at any step, \
-         so it is the method for large steps and stiff springs, but it is first order, models no \
-         spring damping, and with few iterations the cloth is softer than its springs' `k`: its error \
-         is the largest of the four, and it costs the most dispatches per substep.\n\
+         **RK4** costs four and is fourth order, but dissipates energy slowly and is not symplectic.\n\
+         * **XPBD** projects each spring as a constraint with compliance `1/k` ({iterations} \
+         Gauss–Seidel sweeps per substep, colour by colour). It is stable at any step, so it is the \
+         method for large steps and stiff springs; it is first order, models no spring damping, and \
+         with few iterations the cloth is softer than its springs' `k`.\n\
+         * On a GPU, each force evaluation is one dispatch over the vertices, and XPBD takes \
+         {xpbd_dispatches} dispatches per substep on this scene (predict, {iterations} × (one per \
+         non-empty spring colour{spheres}), finish). At small grids a dispatch costs a few \
+         microseconds whatever it computes, so the GPU cost follows the dispatch count more than the \
+         arithmetic.\n\
          * Below about 1e-7 m, f32 stops improving (the rounding of positions near 1.5 m); only f64 \
          keeps converging, which is why the f64 CPU backend reaches budgets the others cannot.\n\
          * For a student: with a budget of millimetres, Euler at a step safely inside the stability \
          bound is enough; for tenths of a millimetre or better, Verlet buys accuracy cheaply; RK4 \
-         only pays for tight budgets; XPBD when the step must be large. The table above gives the \
-         exact pick on each backend.",
-        cloth_core::integrator::XPBD_ITERATIONS
+         only pays for tight budgets; XPBD when the step must be large. The budget table above gives \
+         the pick on each backend for this scene.",
+        iterations = cloth_core::integrator::XPBD_ITERATIONS,
+        xpbd_dispatches = xpbd_dispatches(scene),
+        spheres = if has_spheres(scene) { " + one for the spheres" } else { "" },
     );
 
     let _ = writeln!(md, "\n## Every run\n");
