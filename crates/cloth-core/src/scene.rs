@@ -40,8 +40,8 @@ pub struct Scene {
     pub air_drag: f64,
     /// Time stepping: frame length, substeps per frame, run length.
     pub time: TimeSpec,
-    /// Time integrator. Default `SemiImplicitEuler` (the brief's). The GPU backends run it and
-    /// `VelocityVerlet`; `RungeKutta4` and `Xpbd` run on the CPU backends.
+    /// Time integrator. Default `SemiImplicitEuler` (the brief's); `VelocityVerlet`,
+    /// `RungeKutta4` and `Xpbd` run on every backend too (see [`crate::integrator`]).
     pub integrator: crate::integrator::Integrator,
     /// The effects this scene simulates. Default: the brief's (everything but air drag).
     pub effects: EffectSet,
