@@ -8,7 +8,8 @@
 //   then XPBD_ITERATIONS times:
 //     pass 1 (per spring)   project the springs of one colour (springs of a colour share no
 //                           vertex, so one invocation per spring needs no atomics), once per colour;
-//     pass 2 (per vertex)   project the vertex out of the spheres, summing the corrections;
+//     pass 2 (per vertex)   project the vertex out of the spheres (swept from its substep start,
+//                           so a long step cannot tunnel), summing the corrections;
 //   pass 3 (per vertex)     v = (x* − x)/Δt, friction on the contacts, deepest penetration.
 // Units: m, kg, s, N/m.
 
@@ -71,6 +72,32 @@ float project_sphere(inout vec3 x, vec3 center, float radius) {
         return depth;
     }
     return 0.0;
+}
+
+// project_sphere made continuous: a path from x_start (outside) that went through the sphere and
+// out the far side is put back where it entered; a path ending inside is projected as usual.
+float project_sphere_swept(inout vec3 x, vec3 x_start, vec3 center, float radius) {
+    vec3 o = x_start - center;
+    float outside_at_start = dot(o, o) - radius * radius;
+    vec3 end_ = x - center;
+    float outside_at_end = dot(end_, end_) - radius * radius;
+    if (outside_at_start >= 0.0 && outside_at_end > 0.0) {
+        vec3 d = x - x_start;
+        float a = dot(d, d);
+        float b = dot(o, d);
+        float discriminant = b * b - a * outside_at_start;
+        if (a > 0.0 && b < 0.0 && discriminant >= 0.0) {
+            float s = (-b - sqrt(discriminant)) / a;
+            if (s <= 1.0) {
+                vec3 entry = x_start + d * s;
+                vec3 moved = x - entry;
+                x = entry;
+                return sqrt(dot(moved, moved));
+            }
+        }
+        return 0.0;
+    }
+    return project_sphere(x, center, radius);
 }
 
 // Coulomb friction in position form: the tangential velocity loses at most c_f times the normal
@@ -138,9 +165,10 @@ void project_spheres(uint i) {
         return;
     }
     vec3 x = p.xyz;
+    vec3 x_start = positions_in[i].xyz;
     float correction = normal_corrections[i];
     for (uint s = 0u; s < params.sphere_count; s++) {
-        correction = correction + project_sphere(x, spheres[s].center, spheres[s].radius);
+        correction = correction + project_sphere_swept(x, x_start, spheres[s].center, spheres[s].radius);
     }
     positions_out[i] = vec4(x, p.w);
     normal_corrections[i] = correction;

@@ -7,7 +7,8 @@
 //   then XPBD_ITERATIONS times:
 //     pass 1 (per spring)   project the springs of one colour (springs of a colour share no
 //                           vertex, so one invocation per spring needs no atomics), once per colour;
-//     pass 2 (per vertex)   project the vertex out of the spheres, summing the corrections;
+//     pass 2 (per vertex)   project the vertex out of the spheres (swept from its substep start,
+//                           so a long step cannot tunnel), summing the corrections;
 //   pass 3 (per vertex)     v = (x* − x)/Δt, friction on the contacts, deepest penetration.
 // Units: m, kg, s, N/m.
 
@@ -74,6 +75,31 @@ fn project_sphere(x: vec3<f32>, center: vec3<f32>, radius: f32) -> SphereProject
         return SphereProjection(x + offset * (depth / distance), depth);
     }
     return SphereProjection(x, 0.0);
+}
+
+// project_sphere made continuous: a path from x_start (outside) that went through the sphere and
+// out the far side is put back where it entered; a path ending inside is projected as usual.
+fn project_sphere_swept(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, radius: f32) -> SphereProjection {
+    let o = x_start - center;
+    let outside_at_start = dot(o, o) - radius * radius;
+    let end = x - center;
+    let outside_at_end = dot(end, end) - radius * radius;
+    if (outside_at_start >= 0.0 && outside_at_end > 0.0) {
+        let d = x - x_start;
+        let a = dot(d, d);
+        let b = dot(o, d);
+        let discriminant = b * b - a * outside_at_start;
+        if (a > 0.0 && b < 0.0 && discriminant >= 0.0) {
+            let s = (-b - sqrt(discriminant)) / a;
+            if (s <= 1.0) {
+                let entry = x_start + d * s;
+                let moved = x - entry;
+                return SphereProjection(entry, sqrt(dot(moved, moved)));
+            }
+        }
+        return SphereProjection(x, 0.0);
+    }
+    return project_sphere(x, center, radius);
 }
 
 // Coulomb friction in position form: the tangential velocity loses at most c_f times the normal
@@ -143,9 +169,10 @@ fn project_spheres(i: u32) {
         return;
     }
     var x = p.xyz;
+    let x_start = positions_in[i].xyz;
     var correction = normal_corrections[i];
     for (var s = 0u; s < params.sphere_count; s++) {
-        let r = project_sphere(x, spheres[s].center, spheres[s].radius);
+        let r = project_sphere_swept(x, x_start, spheres[s].center, spheres[s].radius);
         x = r.x;
         correction = correction + r.depth;
     }

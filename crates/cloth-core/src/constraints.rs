@@ -67,6 +67,37 @@ pub fn project_sphere<R: Real>(x: &mut Vec3<R>, center: Vec3<R>, radius: R) -> R
     }
 }
 
+/// [`project_sphere`] made continuous: a vertex that started the substep outside the sphere, at
+/// `x_start`, and whose path to `x` went through it (entered and came out on the far side: a step
+/// longer than the sphere is wide tunnels) is put back where its path entered the sphere. A path
+/// that ends inside is projected as usual. Returns the correction's length, m.
+///
+/// With `d = x − x_start` and `o = x_start − c`, the path enters at the smaller root of
+/// `|o + s d|² = r²`: `s = (−o·d − √((o·d)² − |d|²(|o|² − r²))) / |d|²`.
+pub fn project_sphere_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, center: Vec3<R>, radius: R) -> R {
+    let o = x_start - center;
+    let outside_at_start = o.dot(o) - radius * radius;
+    let end = *x - center;
+    let outside_at_end = end.dot(end) - radius * radius;
+    if outside_at_start >= R::zero() && outside_at_end > R::zero() {
+        let d = *x - x_start;
+        let a = d.dot(d);
+        let b = o.dot(d);
+        let discriminant = b * b - a * outside_at_start;
+        if a > R::zero() && b < R::zero() && discriminant >= R::zero() {
+            let s = (-b - discriminant.sqrt()) / a;
+            if s <= R::one() {
+                let entry = x_start + d * s;
+                let moved = (*x - entry).length();
+                *x = entry;
+                return moved;
+            }
+        }
+        return R::zero();
+    }
+    project_sphere(x, center, radius)
+}
+
 /// Coulomb friction on a contact after the projections, on the velocity `v` (m/s): the brief's
 /// `F_f = −min(|R_ot|, c_f |R_on|) 1_t` in position form. The normal "force" is the normal
 /// correction over the substep, `normal_correction / Δt` (m/s), so friction removes at most
@@ -134,6 +165,25 @@ mod tests {
         let depth = project_sphere(&mut x, v(0., 0., 0.), 1.0);
         assert!((depth - 0.1).abs() < 1e-12 && (x.y - 1.0).abs() < 1e-12);
         assert_eq!(project_sphere(&mut x, v(0., 0., 0.), 0.5), 0.0);
+    }
+
+    #[test]
+    fn a_path_through_the_sphere_is_stopped_where_it_entered() {
+        let c = v(0., 0., 0.);
+        // From 2 m above to 2 m below a unit sphere: tunnelled; put back at the top.
+        let mut x = v(0., -2., 0.);
+        let moved = project_sphere_swept(&mut x, v(0., 2., 0.), c, 1.0);
+        assert!((x.y - 1.0).abs() < 1e-12 && (moved - 3.0).abs() < 1e-12, "{x:?} {moved}");
+        // A path that misses the sphere, or ends inside it, is left to the usual projection.
+        let mut x = v(2., -2., 0.);
+        assert_eq!(project_sphere_swept(&mut x, v(2., 2., 0.), c, 1.0), 0.0);
+        assert_eq!(x, v(2., -2., 0.));
+        let mut x = v(0., 0.9, 0.);
+        assert!((project_sphere_swept(&mut x, v(0., 2., 0.), c, 1.0) - 0.1).abs() < 1e-12);
+        assert!((x.y - 1.0).abs() < 1e-12);
+        // Moving away from the sphere never triggers it.
+        let mut x = v(0., 3., 0.);
+        assert_eq!(project_sphere_swept(&mut x, v(0., 2., 0.), c, 1.0), 0.0);
     }
 
     #[test]

@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 
-use crate::constraints::{contact_friction, project_sphere, project_spring};
+use crate::constraints::{contact_friction, project_sphere_swept, project_spring};
 use crate::effects::Effect;
 use crate::error::SimError;
 use crate::forces::{air_drag_force, contact_force, friction_force, gravity_force, integrate, spring_force};
@@ -308,7 +308,7 @@ impl<R: Real> ReferenceSimulator<R> {
                     continue;
                 }
                 for s in &p.spheres {
-                    normal_correction[i] = normal_correction[i] + project_sphere(xi, s.center, s.radius);
+                    normal_correction[i] = normal_correction[i] + project_sphere_swept(xi, x0[i], s.center, s.radius);
                 }
             }
         }

@@ -243,7 +243,9 @@ impl Default for TimeSpec {
 pub enum Substeps {
     /// Exactly this many substeps per frame.
     Fixed(u32),
-    /// The fewest substeps that keep each one below [`Auto::SAFETY`] of the stable bound.
+    /// The fewest substeps that keep each one below [`Auto::SAFETY`] of the stable bound (for
+    /// XPBD, which has none, below `XPBD_AUTO_OMEGA_DT / ω_max`: see
+    /// [`crate::stability::auto_target_substep`]).
     Auto,
 }
 

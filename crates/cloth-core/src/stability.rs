@@ -88,10 +88,33 @@ pub fn stiffness_and_damping_rates(scene: &Scene) -> (f64, f64) {
     (k_sum / m, damping_rate)
 }
 
+/// `ω_max Δt` that `Substeps::Auto` gives XPBD, which has no stability limit: its
+/// [`crate::integrator::XPBD_ITERATIONS`] Gauss–Seidel sweeps bring the springs to their
+/// compliance only while `ω Δt` stays below about this. Beyond, a landing leaves the stiff springs
+/// stretched far from where their force would hold them, and that elastic energy appears from
+/// nowhere (measured on `scenes/hard/stiff_springs.ron`, 10 × 10 with springs 1000 times the
+/// default: at `ω Δt` = 156, 39, 20 and 10 the elastic energy right after the landing reached
+/// 10, 0.7, 0.13 and 0.04 J, for 1.4 J of energy in the scene).
+pub const XPBD_AUTO_OMEGA_DT: f64 = 10.0;
+
+/// The substep `Substeps::Auto` aims below, s: `Auto::SAFETY × h_max` for the force-based
+/// integrators, `XPBD_AUTO_OMEGA_DT / ω_max` for XPBD (`ω_max` of the springs alone: its spheres
+/// are constraints, not penalty springs).
+pub fn auto_target_substep(scene: &Scene) -> f64 {
+    if scene.integrator == crate::integrator::Integrator::Xpbd {
+        // Only the springs: XPBD's spheres are constraints, not penalty springs.
+        let mut springs_only = scene.clone();
+        springs_only.effects.set(Effect::SphereContact, false);
+        let (omega_sq, _) = stiffness_and_damping_rates(&springs_only);
+        return if omega_sq > 0.0 { XPBD_AUTO_OMEGA_DT / omega_sq.sqrt() } else { f64::INFINITY };
+    }
+    stable_substep(scene) * Auto::SAFETY
+}
+
 /// Substeps per frame chosen by `Substeps::Auto`: the fewest that keep each substep below
-/// `Auto::SAFETY × h_max`.
+/// [`auto_target_substep`].
 pub fn auto_substeps(scene: &Scene) -> u32 {
-    let h = stable_substep(scene) * Auto::SAFETY;
+    let h = auto_target_substep(scene);
     if h.is_nan() || h <= 0.0 || !scene.time.frame_dt.is_finite() {
         return 1;
     }

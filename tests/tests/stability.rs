@@ -1,0 +1,275 @@
+//! The stability suite: every hard case of `scenes/hard/` on every backend and every integrator.
+//!
+//! Each case asserts, frame by frame: every position and velocity finite; the total energy
+//! (kinetic + elastic + gravitational + contact) never above the initial energy plus the work of
+//! driven motion, within a stated tolerance; and, over the run, the deepest penetration and the
+//! largest strain within the case's bounds. docs/stability.md explains each case and how the
+//! method survives it. A case that broke something keeps its name after what broke.
+
+use cloth_conformance::{Backend, create};
+use cloth_core::scene::Substeps;
+use cloth_core::{ClothModel, ClothState, Energy, Integrator, Scene, stability};
+
+/// Energy may exceed its initial value by this fraction of the case's energy scale (the initial
+/// energy's terms plus the weight times the cloth's diagonal, see `energy_scale`): explicit
+/// integrators conserve energy only up to an oscillation of relative size O(ω Δt), and a penalty
+/// contact can return slightly more than it stored within one substep.
+const ENERGY_TOLERANCE: f64 = 0.05;
+
+fn hard(name: &str) -> Scene {
+    cloth_conformance::scene(&format!("hard/{name}"))
+}
+
+fn with_integrator(scene: &Scene, integrator: Integrator) -> Scene {
+    Scene { integrator, ..scene.clone() }
+}
+
+/// The energy a case's tolerance is a fraction of, J: the magnitude of each initial energy term
+/// plus the cloth's weight times its diagonal (what a fall of its own size is worth).
+fn energy_scale(model: &ClothModel, e0: &Energy) -> f64 {
+    let scene = &model.scene;
+    let weight =
+        scene.vertex_mass() * scene.vertex_count() as f64 * scene.gravity.iter().map(|g| g * g).sum::<f64>().sqrt();
+    let diagonal = scene.cloth.size[0].hypot(scene.cloth.size[1]);
+    e0.kinetic + e0.elastic.iter().sum::<f64>() + e0.gravitational.abs() + e0.contact + weight * diagonal
+}
+
+fn max_strain(model: &ClothModel, state: &ClothState) -> f64 {
+    model
+        .springs
+        .iter()
+        .map(|s| {
+            let (a, b) = (state.positions[s.a as usize], state.positions[s.b as usize]);
+            let l = (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum::<f64>().sqrt();
+            (l / s.rest_length - 1.0).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// What a run measured.
+struct Outcome {
+    name: String,
+    model: ClothModel,
+    states: Vec<ClothState>,
+    energies: Vec<f64>,
+    max_penetration_m: f64,
+    max_strain: f64,
+}
+
+impl Outcome {
+    fn last(&self) -> &ClothState {
+        self.states.last().expect("at least the initial state")
+    }
+}
+
+/// Runs `scene` for `frames` frames, checking finiteness and the energy bound after every frame
+/// (`every` frames apart), and records the states.
+fn run_checked(backend: &Backend, scene: &Scene, frames: u32, every: u32) -> Option<Outcome> {
+    let name = format!("{} {} {:?}", backend.name, scene.name, scene.integrator);
+    let mut sim = create(backend, scene)?;
+    let model = ClothModel::new(scene);
+    let first = sim.read_state().unwrap();
+    let e0 = Energy::of(&model, &first);
+    let limit = e0.total() + ENERGY_TOLERANCE * energy_scale(&model, &e0);
+    let mut outcome = Outcome {
+        name,
+        energies: vec![e0.total()],
+        max_strain: max_strain(&model, &first),
+        states: vec![first],
+        model,
+        max_penetration_m: 0.0,
+    };
+    let mut done = 0;
+    while done < frames {
+        let n = every.min(frames - done);
+        sim.advance(n).unwrap();
+        done += n;
+        let state = sim.read_state().unwrap();
+        let name = &outcome.name;
+        assert_eq!(state.non_finite_count(), 0, "{name}: NaN or infinity at frame {done}");
+        let e = Energy::of(&outcome.model, &state).total();
+        assert!(
+            e <= limit,
+            "{name}: energy {e:.6e} J at frame {done} above the initial {:.6e} J plus the tolerance (limit {limit:.6e} J)",
+            outcome.energies[0]
+        );
+        outcome.max_strain = outcome.max_strain.max(max_strain(&outcome.model, &state));
+        outcome.energies.push(e);
+        outcome.states.push(state);
+    }
+    outcome.max_penetration_m = sim.diagnostics().unwrap().max_penetration_m;
+    Some(outcome)
+}
+
+fn smallest_radius(scene: &Scene) -> f64 {
+    scene.spheres.iter().map(|s| s.radius).fold(f64::INFINITY, f64::min)
+}
+
+/// Runs a case under every integrator and checks the common bounds: penetration over the run
+/// below `penetration_fraction` of the smallest radius, strain below `strain`.
+fn every_integrator(
+    backend: &Backend,
+    scene: &Scene,
+    penetration_fraction: f64,
+    strain: f64,
+    check: impl Fn(&Outcome),
+) {
+    for integrator in Integrator::ALL {
+        let scene = with_integrator(scene, integrator);
+        let Some(outcome) = run_checked(backend, &scene, scene.time.frames, 1) else { return };
+        let radius = smallest_radius(&scene);
+        let name = &outcome.name;
+        eprintln!(
+            "{name}: {} substeps/frame, max penetration {:.2}% of the radius, max strain {:.3}, energy {:.3e} -> {:.3e} J",
+            scene.substeps_per_frame(),
+            100.0 * outcome.max_penetration_m / radius,
+            outcome.max_strain,
+            outcome.energies[0],
+            outcome.energies.last().unwrap()
+        );
+        assert!(
+            outcome.max_penetration_m < penetration_fraction * radius,
+            "{name}: max penetration {:.4} m, bound {:.4} m",
+            outcome.max_penetration_m,
+            penetration_fraction * radius
+        );
+        assert!(outcome.max_strain < strain, "{name}: max strain {:.3}, bound {strain}", outcome.max_strain);
+        check(&outcome);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The cases.
+
+fn stiff_springs_with_auto_substeps(backend: &Backend) {
+    every_integrator(backend, &hard("stiff_springs.ron"), 0.05, 0.05, |_| {});
+}
+
+/// Every force-based integrator at 0.95 times its own predicted bound (the safe Gershgorin bound
+/// that validation and `Auto` use), on the stiff cloth. XPBD has no bound; it is run at 10, 100
+/// and 1000 times the explicit one in `crates/cloth-core/tests/stability_limits.rs`.
+fn step_at_0_95_of_the_bound(backend: &Backend) {
+    let base = hard("stiff_springs.ron");
+    for integrator in Integrator::EXPLICIT {
+        let mut scene = with_integrator(&base, integrator);
+        let bound = stability::stable_substep(&scene);
+        scene.time.substeps = Substeps::Fixed(1);
+        scene.time.frame_dt = 0.95 * bound;
+        let frames = (0.25 / scene.time.frame_dt) as u32;
+        let Some(outcome) = run_checked(backend, &scene, frames, frames / 10) else { return };
+        eprintln!(
+            "{}: Δt = {:.3e} s, {frames} substeps, max strain {:.4}",
+            outcome.name, scene.time.frame_dt, outcome.max_strain
+        );
+        assert!(outcome.max_strain < 0.05, "{}: max strain {}", outcome.name, outcome.max_strain);
+    }
+}
+
+fn light_vertices_of_1e_5_kg(backend: &Backend) {
+    every_integrator(backend, &hard("light_vertices.ron"), 0.05, 0.1, |_| {});
+}
+
+fn heavy_vertices_of_10_kg(backend: &Backend) {
+    every_integrator(backend, &hard("heavy_vertices.ron"), 0.05, 0.1, |_| {});
+}
+
+/// At 30 m/s onto a sphere of 10 cm: no vertex ends on the far side. A vertex that went through
+/// the sphere crossed its core; two checks rule that out:
+/// 1. every vertex's depth inside the sphere, checked by the backends after every substep, stays
+///    below a fifth of the radius over the whole run;
+/// 2. between two substeps a vertex moves less than that (30 m/s × Δt < r/5), so it cannot skip
+///    over the shell into the core unseen. XPBD, whose steps are longer, projects the spheres
+///    along each vertex's path in the substep (swept, `constraints::project_sphere_swept`), so no
+///    step can jump over a sphere.
+///
+/// The cloth may still slide around the sphere and off it (XPBD's nearly inextensible cloth does:
+/// its edges' momentum drags the centre around the side), which is not tunnelling.
+///
+/// Found with the default contact stiffness (1000 N/m): the cloth, wrapped tight around the small
+/// sphere by the impact, squeezed through its lower half (vertices 1 cm inside, below the
+/// equator, still moving inwards, ending under the sphere). A penalty force holds a load only at
+/// the depth load / k_c, so the scene sets k_c = 1e5 N/m (Auto substeps follow: 133 per frame).
+fn impact_at_30_m_s_does_not_tunnel(backend: &Backend) {
+    let scene = hard("impact.ron");
+    let sphere = scene.spheres[0].clone();
+    for integrator in Integrator::EXPLICIT {
+        let s = with_integrator(&scene, integrator);
+        let jump = 30.0 * s.substep_dt();
+        assert!(jump < 0.2 * sphere.radius, "{integrator:?}: {jump} m per substep could skip the sphere's shell");
+    }
+    // 46 J of kinetic energy go into springs of 400 N/m as the cloth's centre stops and its edges
+    // whip around: they stretch up to about twice their length (strain 1.1 explicit, 1.5 XPBD).
+    every_integrator(backend, &scene, 0.2, 2.0, |_| {});
+}
+
+/// Starting inside the sphere, the cloth is pushed out without exploding: the energy bound
+/// holds (its initial contact energy is all it may spend), and at the end no vertex is inside.
+fn starting_inside_the_sphere_is_pushed_out(backend: &Backend) {
+    let scene = hard("inside_sphere.ron");
+    let sphere = scene.spheres[0].clone();
+    // The penalty force on the deepest vertices starts at k_c times half the radius, a hundred
+    // times the springs' pull: the cloth stretches up to about 1.5 times its rest length while it
+    // is pushed out, then recovers. Penetration starts at the full depth, so it is bounded at the
+    // end instead.
+    every_integrator(backend, &scene, 1.0, 2.0, |outcome| {
+        let deepest = outcome
+            .last()
+            .positions
+            .iter()
+            .map(|p| sphere.radius - (0..3).map(|k| (p[k] as f64 - sphere.center[k]).powi(2)).sum::<f64>().sqrt())
+            .fold(f64::MIN, f64::max);
+        assert!(deepest < 0.02 * sphere.radius, "{}: still {deepest:.4} m inside at the end", outcome.name);
+    });
+}
+
+fn two_overlapping_spheres(backend: &Backend) {
+    every_integrator(backend, &hard("two_spheres.ron"), 0.05, 0.2, |_| {});
+}
+
+/// A sphere smaller than a cell: vertex-based contact cannot hold it, so the bounds are only
+/// finiteness and energy (checked every frame) and a loose strain bound.
+fn sphere_smaller_than_a_cell(backend: &Backend) {
+    let scene = hard("tiny_sphere.ron");
+    every_integrator(backend, &scene, 1.0, 0.5, |outcome| {
+        let c = outcome.last().centroid();
+        eprintln!("{}: the cloth ends with its centroid at y = {:.3} m (sphere centre 1.0 m)", outcome.name, c[1]);
+    });
+}
+
+macro_rules! cases_for_backend {
+    ($backend:ident, $value:path, [$($case:ident),* $(,)?]) => {
+        mod $backend {
+            $(
+                #[test]
+                fn $case() {
+                    cloth_conformance::run_case(&$value, stringify!($case), super::$case);
+                }
+            )*
+        }
+    };
+}
+
+macro_rules! stability_suite {
+    (backends: [$($backend:ident => $value:path),* $(,)?], cases: $cases:tt) => {
+        $( cases_for_backend!($backend, $value, $cases); )*
+    };
+}
+
+stability_suite! {
+    backends: [
+        cpu => cloth_conformance::CPU,
+        cpu_f64 => cloth_conformance::CPU_F64,
+        wgpu => cloth_conformance::WGPU,
+        vulkano => cloth_conformance::VULKANO,
+    ],
+    cases: [
+        stiff_springs_with_auto_substeps,
+        step_at_0_95_of_the_bound,
+        light_vertices_of_1e_5_kg,
+        heavy_vertices_of_10_kg,
+        impact_at_30_m_s_does_not_tunnel,
+        starting_inside_the_sphere_is_pushed_out,
+        two_overlapping_spheres,
+        sphere_smaller_than_a_cell,
+    ]
+}
