@@ -55,6 +55,15 @@ vec3 friction_force(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt
     return tangential * (-(min(magnitude, limit) / magnitude));
 }
 
+// Whether the brief's friction holds the vertex still: |R_ot + m v_t / Δt| <= c_f |R_on|.
+bool friction_holds(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt, float coefficient) {
+    vec3 r_on = normal * dot(other_forces, normal);
+    vec3 r_ot = other_forces - r_on;
+    vec3 v_t = v - normal * dot(v, normal);
+    vec3 tangential = r_ot + v_t * (mass / dt);
+    return sqrt(dot(tangential, tangential)) <= coefficient * sqrt(dot(r_on, r_on));
+}
+
 // Whether springs of this kind are simulated (a specialization constant per kind).
 bool kind_enabled(uint kind) {
     if (kind == 0u) return EFFECT_STRUCTURAL;

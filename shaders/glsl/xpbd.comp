@@ -10,7 +10,8 @@
 //                           vertex, so one invocation per spring needs no atomics), once per colour;
 //     pass 2 (per vertex)   project the vertex out of the spheres (swept from its substep start,
 //                           so a long step cannot tunnel), summing the corrections;
-//   pass 3 (per vertex)     v = (x* − x)/Δt, friction on the contacts, deepest penetration.
+//   pass 3 (per vertex)     friction on the contacts' displacements, v = (x* − x)/Δt, deepest
+//                           penetration.
 // Units: m, kg, s, N/m.
 
 #include "effects.glsl"
@@ -100,23 +101,23 @@ float project_sphere_swept(inout vec3 x, vec3 x_start, vec3 center, float radius
     return project_sphere(x, center, radius);
 }
 
-// Coulomb friction in position form: the tangential velocity loses at most c_f times the normal
-// correction's velocity, and stops when that suffices.
-vec3 contact_friction(vec3 v, vec3 x, vec3 center, float radius, float coefficient, float normal_correction,
-                      float dt) {
+// Coulomb friction in position form: the tangential part of the substep's displacement is undone
+// up to c_f times the normal correction (static: the vertex sticks), shortened by that beyond.
+vec3 contact_friction(vec3 x, vec3 x_start, vec3 center, float radius, float coefficient, float normal_correction) {
     vec3 offset = x - center;
     float distance = sqrt(dot(offset, offset));
     if (distance <= 0.0 || distance > radius * 1.000001) {
-        return v;
+        return x;
     }
     vec3 n = offset * (1.0 / distance);
-    vec3 v_t = v - n * dot(v, n);
-    float speed = sqrt(dot(v_t, v_t));
-    float budget = coefficient * normal_correction * (1.0 / dt);
-    if (speed > 0.0) {
-        return v - v_t * (min(speed, budget) / speed);
+    vec3 dx = x - x_start;
+    vec3 dx_t = dx - n * dot(dx, n);
+    float slide = sqrt(dot(dx_t, dx_t));
+    float budget = coefficient * normal_correction;
+    if (slide > 0.0) {
+        return x - dx_t * (min(slide, budget) / slide);
     }
-    return v;
+    return x;
 }
 
 void predict(uint i) {
@@ -176,22 +177,24 @@ void project_spheres(uint i) {
 
 void finish(uint i) {
     vec4 p = positions_out[i];
+    vec3 x = p.xyz;
     vec3 v = vec3(0.0);
     if (p.w != 0.0) {
-        float h = params.substep_dt;
-        v = (p.xyz - positions_in[i].xyz) * (1.0 / h);
+        vec3 x_start = positions_in[i].xyz;
         float correction = normal_corrections[i];
         if (EFFECT_FRICTION && correction > 0.0) {
             for (uint s = 0u; s < params.sphere_count; s++) {
-                v = contact_friction(v, p.xyz, spheres[s].center, spheres[s].radius, spheres[s].friction, correction, h);
+                x = contact_friction(x, x_start, spheres[s].center, spheres[s].radius, spheres[s].friction, correction);
             }
+            positions_out[i] = vec4(x, p.w);
         }
+        v = (x - x_start) * (1.0 / params.substep_dt);
     }
     velocities_out[i] = vec4(v, 0.0);
     if (EFFECT_CONTACT) {
         float deepest = 0.0;
         for (uint s = 0u; s < params.sphere_count; s++) {
-            vec3 offset = p.xyz - spheres[s].center;
+            vec3 offset = x - spheres[s].center;
             deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
         }
         if (deepest > 0.0) {

@@ -8,7 +8,8 @@
 //   3: x_2 = x + ½Δt v,   v_2 = v + ½Δt a_1    (stores x, v, Σx = v, Σv = a_1 in rk4_scratch)
 //   4: x_3 = x + ½Δt v_2, v_3 = v + ½Δt a_2    (Σx += 2 v_2, Σv += 2 a_2)
 //   5: x_4 = x + Δt v_3,  v_4 = v + Δt a_3     (Σx += 2 v_3, Σv += 2 a_3)
-//   6: x' = x + Δt/6 (Σx + v_4), v' = v + Δt/6 (Σv + a_4)
+//   6: x' = x + Δt/6 (Σx + v_4), v' = v + Δt/6 (Σv + a_4); a vertex that friction holds at
+//      this last stage's state sticks (its tangential motion over the substep is undone)
 override STAGE: u32 = 0u;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
@@ -70,6 +71,9 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             force += air_drag_force(mass, params.air_drag, v);
         }
         let other_forces = force;
+        // RK4's last stage: the normal of a contact whose friction holds the vertex (it sticks).
+        var stuck = false;
+        var stick_normal = vec3<f32>(0.0);
         if (EFFECT_CONTACT) {
             for (var s = 0u; s < params.sphere_count; s++) {
                 let c = contact_force(x, v, spheres[s]);
@@ -77,6 +81,11 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
                     force += c.force;
                     if (EFFECT_FRICTION) {
                         force += friction_force(other_forces, v, c.normal, mass, friction_dt, spheres[s].friction);
+                        if (STAGE == 6u && !stuck
+                            && friction_holds(other_forces, v, c.normal, mass, friction_dt, spheres[s].friction)) {
+                            stuck = true;
+                            stick_normal = c.normal;
+                        }
                     }
                 }
             }
@@ -111,6 +120,12 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
                     let sixth = dt / 6.0;
                     x_new = x_start + (sum_x + v) * sixth;
                     v_new = v_start + (sum_v + a) * sixth;
+                    if (stuck) {
+                        // Static friction: no tangential motion over the substep.
+                        let d = x_new - x_start;
+                        x_new = x_new - (d - stick_normal * dot(d, stick_normal));
+                        v_new = stick_normal * dot(v_new, stick_normal);
+                    }
                 } else {
                     rk4_scratch[slot + 2u] = vec4<f32>(sum_x + v * 2.0, 0.0);
                     rk4_scratch[slot + 3u] = vec4<f32>(sum_v + a * 2.0, 0.0);

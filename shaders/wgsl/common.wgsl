@@ -139,6 +139,16 @@ fn friction_force(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
     return tangential * (-(min(magnitude, limit) / magnitude));
 }
 
+// Whether the brief's friction holds the vertex still: |R_ot + m v_t / Δt| <= c_f |R_on|.
+fn friction_holds(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
+                  mass: f32, dt: f32, coefficient: f32) -> bool {
+    let r_on = normal * dot(other_forces, normal);
+    let r_ot = other_forces - r_on;
+    let v_t = v - normal * dot(v, normal);
+    let tangential = r_ot + v_t * (mass / dt);
+    return sqrt(dot(tangential, tangential)) <= coefficient * sqrt(dot(r_on, r_on));
+}
+
 fn kind_enabled(kind: u32) -> bool {
     switch kind {
         case 0u: { return EFFECT_STRUCTURAL; }

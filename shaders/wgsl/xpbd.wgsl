@@ -9,7 +9,8 @@
 //                           vertex, so one invocation per spring needs no atomics), once per colour;
 //     pass 2 (per vertex)   project the vertex out of the spheres (swept from its substep start,
 //                           so a long step cannot tunnel), summing the corrections;
-//   pass 3 (per vertex)     v = (x* − x)/Δt, friction on the contacts, deepest penetration.
+//   pass 3 (per vertex)     friction on the contacts' displacements, v = (x* − x)/Δt, deepest
+//                           penetration.
 // Units: m, kg, s, N/m.
 
 // Which pass this pipeline runs (see above).
@@ -102,23 +103,24 @@ fn project_sphere_swept(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, rad
     return project_sphere(x, center, radius);
 }
 
-// Coulomb friction in position form: the tangential velocity loses at most c_f times the normal
-// correction's velocity, and stops when that suffices.
-fn contact_friction(v: vec3<f32>, x: vec3<f32>, center: vec3<f32>, radius: f32,
-                    coefficient: f32, normal_correction: f32, dt: f32) -> vec3<f32> {
+// Coulomb friction in position form: the tangential part of the substep's displacement is undone
+// up to c_f times the normal correction (static: the vertex sticks), shortened by that beyond.
+fn contact_friction(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, radius: f32,
+                    coefficient: f32, normal_correction: f32) -> vec3<f32> {
     let offset = x - center;
     let distance = sqrt(dot(offset, offset));
     if (distance <= 0.0 || distance > radius * 1.000001) {
-        return v;
+        return x;
     }
     let n = offset * (1.0 / distance);
-    let v_t = v - n * dot(v, n);
-    let speed = sqrt(dot(v_t, v_t));
-    let budget = coefficient * normal_correction * (1.0 / dt);
-    if (speed > 0.0) {
-        return v - v_t * (min(speed, budget) / speed);
+    let dx = x - x_start;
+    let dx_t = dx - n * dot(dx, n);
+    let slide = sqrt(dot(dx_t, dx_t));
+    let budget = coefficient * normal_correction;
+    if (slide > 0.0) {
+        return x - dx_t * (min(slide, budget) / slide);
     }
-    return v;
+    return x;
 }
 
 fn predict(i: u32) {
@@ -182,23 +184,25 @@ fn project_spheres(i: u32) {
 
 fn finish(i: u32) {
     let p = positions_out[i];
+    var x = p.xyz;
     var v = vec3<f32>(0.0);
     if (p.w != 0.0) {
-        let h = params.substep_dt;
-        v = (p.xyz - positions_in[i].xyz) * (1.0 / h);
+        let x_start = positions_in[i].xyz;
         let correction = normal_corrections[i];
         if (EFFECT_FRICTION && correction > 0.0) {
             for (var s = 0u; s < params.sphere_count; s++) {
-                v = contact_friction(v, p.xyz, spheres[s].center, spheres[s].radius, spheres[s].friction,
-                                     correction, h);
+                x = contact_friction(x, x_start, spheres[s].center, spheres[s].radius, spheres[s].friction,
+                                     correction);
             }
+            positions_out[i] = vec4<f32>(x, p.w);
         }
+        v = (x - x_start) * (1.0 / params.substep_dt);
     }
     velocities_out[i] = vec4<f32>(v, 0.0);
     if (EFFECT_CONTACT) {
         var deepest = 0.0;
         for (var s = 0u; s < params.sphere_count; s++) {
-            let offset = p.xyz - spheres[s].center;
+            let offset = x - spheres[s].center;
             deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
         }
         if (deepest > 0.0) {

@@ -98,31 +98,37 @@ pub fn project_sphere_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, center: 
     project_sphere(x, center, radius)
 }
 
-/// Coulomb friction on a contact after the projections, on the velocity `v` (m/s): the brief's
-/// `F_f = −min(|R_ot|, c_f |R_on|) 1_t` in position form. The normal "force" is the normal
-/// correction over the substep, `normal_correction / Δt` (m/s), so friction removes at most
-/// `c_f` times that from the tangential velocity, and stops the vertex (static friction) when
-/// that suffices. `x` is the projected position; a vertex not on the sphere (beyond a relative
-/// `1e-6` of its radius) is left alone.
+/// Coulomb friction on a contact, in position form (the brief's
+/// `F_f = −min(|R_ot|, c_f |R_on|) 1_t` with displacements for forces, as XPBD does it): the
+/// tangential part of the substep's displacement `x − x_start` is undone when it is within `c_f`
+/// times the normal correction the spheres made (static friction: the vertex sticks), and
+/// shortened by that much otherwise (kinetic friction). `x` is the projected position, m; a vertex
+/// not on the sphere (beyond a relative `1e-6` of its radius) is left alone. Returns the new
+/// position.
+///
+/// Applied to velocities instead (cutting the tangential velocity after the substep), friction
+/// cannot hold anything: the position has already slid by `g sin θ Δt²` in every substep, a creep
+/// of `g sin θ Δt` (3 cm/s at Δt = 4 ms on a 45° slope), and a drape slid off a sphere of friction
+/// coefficient 1.5 that way (`scenes/hard/creep.ron`).
 pub fn contact_friction<R: Real>(
-    v: Vec3<R>,
     x: Vec3<R>,
+    x_start: Vec3<R>,
     center: Vec3<R>,
     radius: R,
     coefficient: R,
     normal_correction: R,
-    dt: R,
 ) -> Vec3<R> {
     let offset = x - center;
     let distance = offset.length();
     if distance <= R::zero() || distance > radius * R::of(1.0 + 1e-6) {
-        return v;
+        return x;
     }
     let n = offset * (R::one() / distance);
-    let v_t = v - n * v.dot(n);
-    let speed = v_t.length();
-    let budget = coefficient * normal_correction * (R::one() / dt);
-    if speed > R::zero() { v - v_t * (speed.min(budget) / speed) } else { v }
+    let dx = x - x_start;
+    let dx_t = dx - n * dx.dot(n);
+    let slide = dx_t.length();
+    let budget = coefficient * normal_correction;
+    if slide > R::zero() { x - dx_t * (slide.min(budget) / slide) } else { x }
 }
 
 #[cfg(test)]
@@ -187,12 +193,18 @@ mod tests {
     }
 
     #[test]
-    fn friction_stops_a_slow_slide_and_slows_a_fast_one() {
-        let (c, x) = (v(0., 0., 0.), v(0., 1., 0.));
-        // Budget c_f · correction / Δt = 0.5 · 0.01 / 0.01 = 0.5 m/s.
-        let slow = contact_friction(v(0.3, 0., 0.), x, c, 1.0, 0.5, 0.01, 0.01);
-        assert!(slow.length() < 1e-12);
-        let fast = contact_friction(v(2.0, -1.0, 0.), x, c, 1.0, 0.5, 0.01, 0.01);
-        assert!((fast.x - 1.5).abs() < 1e-12 && (fast.y + 1.0).abs() < 1e-12, "{fast:?}");
+    fn friction_holds_a_short_slide_and_shortens_a_long_one() {
+        let c = v(0., 0., 0.);
+        // On top of a unit sphere after a normal correction of 0.01 m: with c_f = 0.5 the budget
+        // is 5 mm of tangential displacement.
+        // Both end points are on the sphere, 3 mm and 20 mm from the start along it.
+        let on_sphere = |s: f64| v(s, (1.0 - s * s).sqrt(), 0.);
+        let start = v(0., 1.0, 0.);
+        let held = contact_friction(on_sphere(0.003), start, c, 1.0, 0.5, 0.01);
+        assert!(held.x.abs() < 1e-5, "static: back where it started, {held:?}");
+        let slid = contact_friction(on_sphere(0.02), start, c, 1.0, 0.5, 0.01);
+        assert!((slid.x - 0.015).abs() < 1e-4, "kinetic: 5 mm shorter, {slid:?}");
+        // Off the sphere, no friction.
+        assert_eq!(contact_friction(v(0.02, 1.1, 0.), start, c, 1.0, 0.5, 0.01), v(0.02, 1.1, 0.));
     }
 }

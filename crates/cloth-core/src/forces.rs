@@ -118,6 +118,36 @@ pub fn friction_force<R: Real>(
     tangential * (-(magnitude.min(limit) / magnitude))
 }
 
+/// Whether the brief's friction holds the vertex still (static friction): the tangential force it
+/// has to cancel, `R_ot + m v_t / Δt` (see [`friction_force`]), is within `c_f |R_on|`.
+///
+/// RK4 uses it: friction switches between sticking and sliding, which a smooth four-stage method
+/// cannot follow (no combination of its stages stops a velocity in one step), so RK4 makes a
+/// vertex that friction holds at the end of a substep stick exactly (see
+/// `reference::ReferenceSimulator`, and `STAGE` 6 of the shaders).
+pub fn friction_holds<R: Real>(
+    other_forces: Vec3<R>,
+    v: Vec3<R>,
+    normal: Vec3<R>,
+    mass: R,
+    dt: R,
+    coefficient: R,
+) -> bool {
+    let r_on = normal * other_forces.dot(normal);
+    let r_ot = other_forces - r_on;
+    let v_t = v - normal * v.dot(normal);
+    let tangential = r_ot + v_t * (mass / dt);
+    tangential.length() <= coefficient * r_on.length()
+}
+
+/// Makes a vertex stick to a contact: removes the tangential part (to `normal`) of its
+/// displacement over the substep, `x − x_start`, and of its velocity. Returns `(x, v)`.
+pub fn stick<R: Real>(x: Vec3<R>, v: Vec3<R>, x_start: Vec3<R>, normal: Vec3<R>) -> (Vec3<R>, Vec3<R>) {
+    let d = x - x_start;
+    let d_t = d - normal * d.dot(normal);
+    (x - d_t, normal * v.dot(normal))
+}
+
 /// Semi-implicit (symplectic) Euler, the brief's integrator:
 /// `v_c = v_p + Δt R / m`, then `x_c = x_p + Δt v_c`. Returns `(x_c, v_c)`.
 pub fn integrate<R: Real>(x: Vec3<R>, v: Vec3<R>, resultant: Vec3<R>, mass: R, dt: R) -> (Vec3<R>, Vec3<R>) {

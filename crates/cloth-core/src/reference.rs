@@ -9,7 +9,9 @@ use rayon::prelude::*;
 use crate::constraints::{contact_friction, project_sphere_swept, project_spring};
 use crate::effects::Effect;
 use crate::error::SimError;
-use crate::forces::{air_drag_force, contact_force, friction_force, gravity_force, integrate, spring_force};
+use crate::forces::{
+    air_drag_force, contact_force, friction_force, friction_holds, gravity_force, integrate, spring_force, stick,
+};
 use crate::integrator::{Integrator, XPBD_ITERATIONS};
 use crate::model::ClothModel;
 use crate::real::{Real, Vec3};
@@ -204,6 +206,25 @@ impl<R: Real> ReferenceSimulator<R> {
             .collect()
     }
 
+    /// As [`Self::forces`], with, for each vertex, the normal of a contact whose friction holds it
+    /// (static friction), if any.
+    fn forces_and_sticks(&self, x: &[Vec3<R>], v: &[Vec3<R>], friction_dt: R) -> (Vec<Vec3<R>>, Vec<Option<Vec3<R>>>) {
+        let ctx = StepContext {
+            params: &self.params,
+            effects: self.scene.effects,
+            first: &self.first,
+            ends: &self.ends,
+            x,
+            v,
+        };
+        let pinned = &self.pinned;
+        (0..x.len())
+            .into_par_iter()
+            .with_min_len(PARALLEL_CHUNK)
+            .map(|i| if pinned[i] { (Vec3::zero(), None) } else { ctx.vertex_force_and_stick(i, friction_dt) })
+            .unzip()
+    }
+
     /// `x + s·d` on free vertices (pinned ones keep `x`).
     fn offset(&self, x: &[Vec3<R>], d: &[Vec3<R>], s: R) -> Vec<Vec3<R>> {
         x.iter().zip(d).zip(&self.pinned).map(|((x, d), &p)| if p { *x } else { *x + *d * s }).collect()
@@ -224,7 +245,8 @@ impl<R: Real> ReferenceSimulator<R> {
         self.velocities = v_new.into_iter().zip(&self.pinned).map(|(v, &p)| if p { Vec3::zero() } else { v }).collect();
     }
 
-    /// Classical fourth-order Runge–Kutta on `(x, v)` with `x' = v`, `v' = F(x, v)/m`.
+    /// Classical fourth-order Runge–Kutta on `(x, v)` with `x' = v`, `v' = F(x, v)/m`; a vertex
+    /// that friction holds at the last stage's state sticks (`forces::friction_holds`).
     fn rk4_substep(&mut self) {
         let p = &self.params;
         let (h, half, sixth) = (p.dt, p.dt * R::of(0.5), p.dt / R::of(6.0));
@@ -238,7 +260,8 @@ impl<R: Real> ReferenceSimulator<R> {
         let (x3, v3) = (self.offset(x, &v2, half), self.offset(v, &a2, half));
         let a3 = accel(self.forces(&x3, &v3, h));
         let (x4, v4) = (self.offset(x, &v3, h), self.offset(v, &a3, h));
-        let a4 = accel(self.forces(&x4, &v4, h));
+        let (f4, sticks) = self.forces_and_sticks(&x4, &v4, h);
+        let a4 = accel(f4);
         let two = R::of(2.0);
         let n = x.len();
         let mut x_new = Vec::with_capacity(n);
@@ -248,8 +271,15 @@ impl<R: Real> ReferenceSimulator<R> {
                 x_new.push(x[i]);
                 v_new.push(Vec3::zero());
             } else {
-                x_new.push(x[i] + (v[i] + v2[i] * two + v3[i] * two + v4[i]) * sixth);
-                v_new.push(v[i] + (a1[i] + a2[i] * two + a3[i] * two + a4[i]) * sixth);
+                let xi = x[i] + (v[i] + v2[i] * two + v3[i] * two + v4[i]) * sixth;
+                let vi = v[i] + (a1[i] + a2[i] * two + a3[i] * two + a4[i]) * sixth;
+                // Static friction at the substep's end (the last stage's state): stick exactly.
+                let (xi, vi) = match sticks[i] {
+                    Some(normal) => stick(xi, vi, x[i], normal),
+                    None => (xi, vi),
+                };
+                x_new.push(xi);
+                v_new.push(vi);
             }
         }
         self.positions = x_new;
@@ -259,7 +289,8 @@ impl<R: Real> ReferenceSimulator<R> {
     /// XPBD (see [`Integrator::Xpbd`] and [`crate::constraints`]): predict with gravity and
     /// drag, then [`XPBD_ITERATIONS`] times project every spring (colour by colour, in the order
     /// of [`crate::coloring`], so exactly what the GPU's one-dispatch-per-colour computes) and
-    /// every sphere, derive the velocities `(x' − x)/Δt`, then apply friction to the contacts.
+    /// every sphere (swept), apply friction to the contacts' displacements, and derive the
+    /// velocities `(x' − x)/Δt`.
     fn xpbd_substep(&mut self) {
         let p = &self.params;
         let (h, m) = (p.dt, p.mass);
@@ -312,20 +343,23 @@ impl<R: Real> ReferenceSimulator<R> {
                 }
             }
         }
-        let inv_h = R::one() / h;
-        let mut v: Vec<Vec3<R>> = x.iter().zip(&x0).map(|(a, b)| (*a - *b) * inv_h).collect();
-        for (i, vi) in v.iter_mut().enumerate() {
-            if self.pinned[i] {
-                *vi = Vec3::zero();
-                continue;
-            }
-            if normal_correction[i] <= R::zero() || !effects.contains(Effect::Friction) {
-                continue;
-            }
-            for s in &p.spheres {
-                *vi = contact_friction(*vi, x[i], s.center, s.radius, s.friction, normal_correction[i], h);
+        if effects.contains(Effect::Friction) {
+            for (i, xi) in x.iter_mut().enumerate() {
+                if self.pinned[i] || normal_correction[i] <= R::zero() {
+                    continue;
+                }
+                for s in &p.spheres {
+                    *xi = contact_friction(*xi, x0[i], s.center, s.radius, s.friction, normal_correction[i]);
+                }
             }
         }
+        let inv_h = R::one() / h;
+        let v: Vec<Vec3<R>> = x
+            .iter()
+            .zip(&x0)
+            .zip(&self.pinned)
+            .map(|((a, b), &pinned)| if pinned { Vec3::zero() } else { (*a - *b) * inv_h })
+            .collect();
         self.positions = x;
         self.velocities = v;
     }
@@ -390,6 +424,11 @@ impl<R: Real> StepContext<'_, R> {
     /// friction (computed from the others). `friction_dt` is the step the friction's stopping
     /// term refers to.
     fn vertex_force(&self, i: usize, friction_dt: R) -> Vec3<R> {
+        self.vertex_force_and_stick(i, friction_dt).0
+    }
+
+    /// [`Self::vertex_force`], with the normal of a contact whose friction holds the vertex, if any.
+    fn vertex_force_and_stick(&self, i: usize, friction_dt: R) -> (Vec3<R>, Option<Vec3<R>>) {
         let p = self.params;
         let (x, v) = (self.x[i], self.v[i]);
         let mut force = Vec3::zero();
@@ -407,15 +446,21 @@ impl<R: Real> StepContext<'_, R> {
         }
         // Contact and friction: R_o, the resultant of the other forces, is the force so far.
         let other_forces = force;
+        let mut stuck = None;
         for s in &p.spheres {
             if let Some(contact) = contact_force(x, v, s.center, s.radius, s.stiffness, s.damping) {
                 force += contact.force;
                 if self.effects.contains(Effect::Friction) {
                     force += friction_force(other_forces, v, contact.normal, p.mass, friction_dt, s.friction);
+                    if stuck.is_none()
+                        && friction_holds(other_forces, v, contact.normal, p.mass, friction_dt, s.friction)
+                    {
+                        stuck = Some(contact.normal);
+                    }
                 }
             }
         }
-        force
+        (force, stuck)
     }
 }
 
