@@ -10,15 +10,20 @@
 //! * [`Integrator::RungeKutta4`]: the classical four-stage method on `(x, v)`. Fourth order, not
 //!   symplectic (it slowly dissipates energy), stable for `Δt < 2√2/ω` on an undamped spring.
 //!   The GPU backends run it as four dispatches per substep (`STAGE` 3 to 6), keeping the
-//!   substep's start state and the running sums per vertex.
+//!   substep's start state and the running sums per vertex. Friction switches between sticking
+//!   and sliding, which no combination of RK4's stages can follow, so a vertex that friction holds
+//!   at the last stage's state sticks exactly ([`crate::forces::friction_holds`]).
 //! * [`Integrator::Xpbd`]: extended position-based dynamics. Gravity and drag predict the
 //!   positions, then [`XPBD_ITERATIONS`] Gauss–Seidel sweeps project every spring with the
 //!   compliance `α = 1/k` (so a spring of stiffness `k` behaves as Hooke's law in the limit of
 //!   many iterations), the spheres as non-penetration constraints, and velocities follow as
 //!   `(x' − x)/Δt`. Stable at any step; first order; springs' damping is not modelled (the method
-//!   dissipates by itself). Friction keeps the brief's Coulomb meaning on the contact's
-//!   displacement: the tangential velocity is cut by at most `c_f` times the normal correction's
-//!   velocity, and stopped when that suffices. The springs are projected colour by colour
+//!   dissipates by itself). The sphere projection is swept along each vertex's path in the
+//!   substep, so a long step cannot tunnel through a sphere. Friction keeps the brief's Coulomb
+//!   meaning on the contact's displacement: the tangential part of the substep's displacement is
+//!   undone up to `c_f` times the normal correction (the vertex sticks), and shortened by that
+//!   beyond. `Substeps::Auto` keeps `ω Δt` below [`crate::stability::XPBD_AUTO_OMEGA_DT`], where
+//!   its sweeps converge. The springs are projected colour by colour
 //!   ([`crate::coloring`]): on the GPU one dispatch per colour, on the CPU the same order, so both
 //!   compute the same thing.
 //!
