@@ -416,3 +416,74 @@ stability_suite! {
         resting_drape_does_not_creep,
     ]
 }
+
+/// Grids at the device's limits: the largest square grid each GPU backend accepts runs a
+/// substep, and the next size up is refused with an error that names the grid, the bytes, the
+/// limit and the largest grid that fits. (On lavapipe the limit is `maxStorageBufferRange`,
+/// 128 MiB, and the largest drape is 836 × 836.)
+#[test]
+fn the_largest_grid_runs_and_the_next_is_refused() {
+    use cloth_core::SimError;
+    use cloth_core::layout::largest_square_grid;
+    let limits: [(&Backend, Option<u64>); 2] = [
+        (
+            &cloth_conformance::WGPU,
+            cloth_wgpu::GpuContext::new(&cloth_wgpu::AdapterChoice::from_env()).ok().map(|c| {
+                let l = c.device.limits();
+                l.max_storage_buffer_binding_size.min(l.max_buffer_size)
+            }),
+        ),
+        (
+            &cloth_conformance::VULKANO,
+            cloth_vulkano::VulkanContext::new(None)
+                .ok()
+                .map(|c| c.device.physical_device().properties().max_storage_buffer_range as u64),
+        ),
+    ];
+    for (backend, limit) in limits {
+        let Some(limit) = limit else {
+            assert!(std::env::var_os("CI").is_none(), "{}: no device under CI", backend.name);
+            eprintln!("SKIPPED on {}: no device", backend.name);
+            continue;
+        };
+        let mut scene = Scene::default();
+        scene.time.substeps = Substeps::Fixed(1);
+        let n = largest_square_grid(&scene, limit);
+        scene.cloth.resolution = [n, n];
+        let Some(mut sim) = create(backend, &scene) else { continue };
+        sim.advance(1).unwrap();
+        let state = sim.read_state().unwrap();
+        assert_eq!(state.positions.len(), (n * n) as usize);
+        assert_eq!(state.non_finite_count(), 0, "{}: {n}x{n}", backend.name);
+        drop(sim);
+        scene.cloth.resolution = [n + 1, n + 1];
+        match (backend.create)(&scene) {
+            Err(e @ SimError::TooLarge { .. }) => {
+                let message = e.to_string();
+                eprintln!("{}: {n}x{n} ran; {}x{} refused: {message}", backend.name, n + 1, n + 1);
+                for part in [format!("grid {}x{}", n + 1, n + 1), format!("largest square one that fits is {n}x{n}")] {
+                    assert!(message.contains(&part), "{}: the refusal should say '{part}': {message}", backend.name);
+                }
+            }
+            Err(e) => panic!("{}: {}x{} refused with the wrong error: {e}", backend.name, n + 1, n + 1),
+            Ok(_) => panic!("{}: {}x{} was accepted beyond the limit of {limit} bytes", backend.name, n + 1, n + 1),
+        }
+    }
+    // The CPU backends are limited by host memory (validation refuses a grid whose build would
+    // need more than 8 GiB); the refusal is checked, the 8 GiB run is not (a CI machine has 24).
+    let fits = |n: u32| {
+        let mut s = Scene::default();
+        s.cloth.resolution = [n, n];
+        s.validate().is_ok()
+    };
+    let (mut lo, mut hi) = (2u32, 1 << 16);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) { lo = mid } else { hi = mid }
+    }
+    let mut scene = Scene::default();
+    scene.cloth.resolution = [hi, hi];
+    let message = scene.validate().unwrap_err().to_string();
+    eprintln!("cpu: {lo}x{lo} is the largest grid validation accepts; {hi}x{hi}: {message}");
+    assert!(message.contains("cloth.resolution") && message.contains("use a smaller grid"), "{message}");
+}

@@ -104,7 +104,7 @@ pub enum SimError {
     },
     /// The scene does not fit on the device.
     #[error(
-        "grid {nx}x{ny} needs {needed_bytes} bytes in one {resource}, but the device allows {limit_bytes}: use a smaller grid"
+        "grid {nx}x{ny} needs {needed_bytes} bytes in one {resource}, but the device allows {limit_bytes}: use a smaller grid (the largest square one that fits is {largest_square}x{largest_square})"
     )]
     TooLarge {
         /// Vertices along u.
@@ -117,6 +117,8 @@ pub enum SimError {
         needed_bytes: u64,
         /// The device's limit.
         limit_bytes: u64,
+        /// Side of the largest square grid of this scene that fits the limit.
+        largest_square: u32,
     },
     /// The device failed during the run (lost, out of memory, ...).
     #[error("backend {backend} failed: {reason}")]

@@ -448,6 +448,25 @@ impl MemoryEstimate {
     }
 }
 
+/// Side `n` of the largest square `n × n` grid of `scene` (its other settings kept) whose largest
+/// buffer fits in `limit_bytes` (2 when not even that fits).
+pub fn largest_square_grid(scene: &Scene, limit_bytes: u64) -> u32 {
+    let fits = |n: u32| {
+        let mut s = scene.clone();
+        s.cloth.resolution = [n, n];
+        MemoryEstimate::of(&s).largest_buffer_bytes <= limit_bytes
+    };
+    let (mut lo, mut hi) = (2u32, 1u32 << 20);
+    if !fits(lo) {
+        return lo;
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) { lo = mid } else { hi = mid }
+    }
+    lo
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -476,6 +495,19 @@ mod tests {
                 assert_eq!(MemoryEstimate::of(&scene).device_bytes, buffers.device_bytes(), "{res:?} {integrator:?}");
             }
         }
+    }
+
+    #[test]
+    fn the_largest_square_grid_fits_and_the_next_does_not() {
+        let scene = Scene::default();
+        let limit = 128 << 20;
+        let n = largest_square_grid(&scene, limit);
+        let at = |n: u32| {
+            let mut s = scene.clone();
+            s.cloth.resolution = [n, n];
+            MemoryEstimate::of(&s).largest_buffer_bytes
+        };
+        assert!(at(n) <= limit && at(n + 1) > limit, "{n}");
     }
 
     #[test]

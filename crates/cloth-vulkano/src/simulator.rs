@@ -84,6 +84,7 @@ impl VulkanoSimulator {
                 resource: "storage buffer (the device's maxStorageBufferRange)".into(),
                 needed_bytes: needed,
                 limit_bytes: limit,
+                largest_square: cloth_core::layout::largest_square_grid(scene, limit),
             });
         }
         let model = ClothModel::new(scene);

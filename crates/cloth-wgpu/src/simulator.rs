@@ -215,6 +215,7 @@ fn check_limits(scene: &Scene, limits: &wgpu::Limits) -> Result<(), SimError> {
             resource: "storage buffer (the device's max_storage_buffer_binding_size)".into(),
             needed_bytes: needed,
             limit_bytes: binding_limit,
+            largest_square: cloth_core::layout::largest_square_grid(scene, binding_limit),
         });
     }
     Ok(())
@@ -364,6 +365,7 @@ mod tests {
         assert!(err.contains("grid 1024x1024 needs 200998976 bytes"), "{err}");
         assert!(err.contains("the device allows 134217728"), "{err}");
         assert!(err.contains("use a smaller grid"), "{err}");
+        assert!(err.contains("the largest square one that fits is 836x836"), "{err}");
         scene.cloth.resolution = [512, 512];
         assert!(check_limits(&scene, &limits).is_ok());
     }
