@@ -16,7 +16,7 @@
 //   5: x_4 = x + Δt v_3,  v_4 = v + Δt a_3     (Σx += 2 v_3, Σv += 2 a_3)
 //   6: x' = x + Δt/6 (Σx + v_4), v' = v + Δt/6 (Σv + a_4); a vertex that friction holds at
 //      this last stage's state sticks (its tangential motion over the substep is undone)
-layout(constant_id = 9) const uint STAGE = 0u;
+layout(constant_id = 101) const uint STAGE = 0u;
 
 #include "layout.glsl"
 #include "forces.glsl"
@@ -34,6 +34,8 @@ layout(set = 0, binding = 8, std430) buffer MaxPenetration { uint max_penetratio
 // running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
 layout(set = 0, binding = 9, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
 
+#include "grid.glsl"
+
 void main() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
     uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
@@ -42,13 +44,28 @@ void main() {
     }
     vec4 p = positions_in[i];
     vec3 x = p.xyz;
-    vec3 v = velocities_in[i].xyz;
+    vec4 state = velocities_in[i];
+    vec3 v = state.xyz;
+    // The time of the state read (velocity.w), and of the state written.
+    float t = state.w;
+    float dt = params.substep_dt;
+    float half_dt = dt * 0.5;
+    float t_out = t + dt;     // Euler, Verlet's kick and drift
+    if (STAGE == 2u || STAGE == 4u || STAGE == 6u) {
+        t_out = t;            // Verlet's second kick; RK4's second and fourth stages (same time)
+    }
+    if (STAGE == 3u) {
+        t_out = t + half_dt;  // RK4's first stage
+        // It keeps the substep's start time for the third (every vertex).
+        rk4_scratch[4u * i] = vec4(x, t);
+    }
+    if (STAGE == 5u) {
+        t_out = rk4_scratch[4u * i].w + dt; // RK4's third stage: the substep's end
+    }
     vec3 x_new = x;
     vec3 v_new = vec3(0.0);
     if (p.w != 0.0) {
         float mass = params.vertex_mass;
-        float dt = params.substep_dt;
-        float half_dt = dt * 0.5;
         // The step the friction's stopping term refers to: what this stage's velocity update spans.
         float friction_dt = (STAGE == 1u || STAGE == 2u) ? half_dt : dt;
         vec3 force = vec3(0.0);
@@ -73,20 +90,25 @@ void main() {
         if (EFFECT_AIR_DRAG) {
             force += air_drag_force(mass, params.air_drag, v);
         }
+        if (EFFECT_WIND) {
+            force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
+        }
+        // Against a moving sphere, contact and friction act on the velocity relative to it.
         vec3 other_forces = force;
         // RK4's last stage: the normal of a contact whose friction holds the vertex (it sticks).
         bool stuck = false;
         vec3 stick_normal = vec3(0.0);
         if (EFFECT_CONTACT) {
             for (uint s = 0u; s < params.sphere_count; s++) {
+                vec3 v_rel = v - sphere_velocity(spheres[s], t);
                 vec3 normal;
                 vec3 contact;
-                if (contact_force(x, v, spheres[s], normal, contact)) {
+                if (contact_force(x, v_rel, sphere_center(spheres[s], t), spheres[s], normal, contact)) {
                     force += contact;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v, normal, mass, friction_dt, spheres[s].friction);
+                        force += friction_force(other_forces, v_rel, normal, mass, friction_dt, spheres[s].friction);
                         if (STAGE == 6u && !stuck
-                            && friction_holds(other_forces, v, normal, mass, friction_dt, spheres[s].friction)) {
+                            && friction_holds(other_forces, v_rel, normal, mass, friction_dt, spheres[s].friction)) {
                             stuck = true;
                             stick_normal = normal;
                         }
@@ -109,7 +131,7 @@ void main() {
             vec3 a = force * (1.0 / mass);
             uint slot = 4u * i;
             if (STAGE == 3u) {
-                rk4_scratch[slot] = vec4(x, 0.0);
+                rk4_scratch[slot] = vec4(x, t);
                 rk4_scratch[slot + 1u] = vec4(v, 0.0);
                 rk4_scratch[slot + 2u] = vec4(v, 0.0);
                 rk4_scratch[slot + 3u] = vec4(a, 0.0);
@@ -139,10 +161,12 @@ void main() {
                 }
             }
         }
-    } else if (STAGE >= 3u && STAGE <= 5u) {
-        v_new = v; // a pinned vertex's intermediate RK4 states keep its (zero) velocity
+    } else {
+        // A pin stays put, or follows the pin motion (MovingPins) from t to t_out.
+        x_new = x + pin_step(t, t_out);
+        v_new = pin_velocity(t_out);
     }
-    velocities_out[i] = vec4(v_new, 0.0);
+    velocities_out[i] = vec4(v_new, t_out);
     if (STAGE == 2u) {
         return; // the second kick leaves the positions of the first stage as they are
     }
@@ -151,7 +175,7 @@ void main() {
     if (EFFECT_CONTACT && (STAGE == 0u || STAGE == 1u || STAGE == 6u)) {
         float deepest = 0.0;
         for (uint s = 0u; s < params.sphere_count; s++) {
-            vec3 offset = x_new - spheres[s].center;
+            vec3 offset = x_new - sphere_center(spheres[s], t_out);
             deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
         }
         if (deepest > 0.0) {

@@ -1,6 +1,6 @@
 // The specialization constants every compute kernel of the cloth shares: the effects (ids in
 // cloth_core::Effect::ALL order, set from cloth_core::EffectSet::shader_constants; the driver
-// removes the code behind a false constant) and the workgroup size (id 8).
+// removes the code behind a false constant) and the workgroup size (id 100).
 
 layout(constant_id = 0) const bool EFFECT_GRAVITY = true;
 layout(constant_id = 1) const bool EFFECT_STRUCTURAL = true;
@@ -10,5 +10,8 @@ layout(constant_id = 4) const bool EFFECT_SPRING_DAMPING = true;
 layout(constant_id = 5) const bool EFFECT_CONTACT = true;
 layout(constant_id = 6) const bool EFFECT_FRICTION = true;
 layout(constant_id = 7) const bool EFFECT_AIR_DRAG = false;
-// local_size_x is the default; local_size_x_id makes it specializable (id 8).
-layout(local_size_x = 64, local_size_x_id = 8) in;
+layout(constant_id = 8) const bool EFFECT_WIND = false;
+layout(constant_id = 9) const bool EFFECT_MOVING_PINS = false;
+layout(constant_id = 10) const bool EFFECT_MOVING_SPHERES = false;
+// local_size_x is the default; local_size_x_id makes it specializable (id 100).
+layout(local_size_x = 64, local_size_x_id = 100) in;

@@ -24,9 +24,10 @@ vec3 air_drag_force(float mass, float rate, vec3 v) {
     return v * (-(mass * rate));
 }
 
-// Brief: F_c = k_c d, plus damping of the normal approach velocity. Returns false outside.
-bool contact_force(vec3 x, vec3 v, Sphere s, out vec3 normal, out vec3 force) {
-    vec3 offset = x - s.center;
+// Brief: F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
+// whose centre is at `center` now). Returns false outside.
+bool contact_force(vec3 x, vec3 v, vec3 center, Sphere s, out vec3 normal, out vec3 force) {
+    vec3 offset = x - center;
     float distance = sqrt(dot(offset, offset));
     float depth = s.radius - distance;
     normal = vec3(0.0);
@@ -62,6 +63,60 @@ bool friction_holds(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt
     vec3 v_t = v - normal * dot(v, normal);
     vec3 tangential = r_ot + v_t * (mass / dt);
     return sqrt(dot(tangential, tangential)) <= coefficient * sqrt(dot(r_on, r_on));
+}
+
+// Linear wind pressure (not in the brief): F = c A ((w − v)·n) n, n the cloth's unit normal.
+vec3 wind_force(vec3 normal, vec3 v, vec3 wind, float coefficient_area) {
+    return normal * (coefficient_area * dot(wind - v, normal));
+}
+
+// The wind at time t: w (1 + a sin(ω_g t)) (cloth_core::motion::wind_velocity).
+vec3 wind_velocity(float t) {
+    return params.wind.xyz * (1.0 + params.gust.x * sin(params.gust.y * t));
+}
+
+// A prescribed motion (cloth_core::motion::MotionOf): d(t) = velocity t + amplitude sin(ω t).
+vec3 motion_displacement(vec3 velocity, vec3 amplitude, float omega, float t) {
+    return velocity * t + amplitude * sin(omega * t);
+}
+
+// d'(t) = velocity + amplitude ω cos(ω t).
+vec3 motion_velocity(vec3 velocity, vec3 amplitude, float omega, float t) {
+    return velocity + amplitude * (omega * cos(omega * t));
+}
+
+// A pin's move from time `from` to `to` (zero without MovingPins).
+vec3 pin_step(float from_t, float to_t) {
+    if (EFFECT_MOVING_PINS) {
+        vec4 v = params.pin_velocity;
+        return motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, to_t)
+            - motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, from_t);
+    }
+    return vec3(0.0);
+}
+
+// A pin's velocity at time t (zero without MovingPins).
+vec3 pin_velocity(float t) {
+    if (EFFECT_MOVING_PINS) {
+        vec4 v = params.pin_velocity;
+        return motion_velocity(v.xyz, params.pin_amplitude.xyz, v.w, t);
+    }
+    return vec3(0.0);
+}
+
+// Where sphere `s` is at time t, and how fast it moves (still without MovingSpheres).
+vec3 sphere_center(Sphere s, float t) {
+    if (EFFECT_MOVING_SPHERES) {
+        return s.center + motion_displacement(s.velocity, s.amplitude, s.omega, t);
+    }
+    return s.center;
+}
+
+vec3 sphere_velocity(Sphere s, float t) {
+    if (EFFECT_MOVING_SPHERES) {
+        return motion_velocity(s.velocity, s.amplitude, s.omega, t);
+    }
+    return vec3(0.0);
 }
 
 // Whether springs of this kind are simulated (a specialization constant per kind).

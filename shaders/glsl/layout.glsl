@@ -2,7 +2,7 @@
 // (checked by crates/cloth-vulkano/tests/layout.rs), with the two bindings all kernels share
 // (0: parameters, 1: spheres). Each kernel declares its other bindings.
 
-// cloth_core::layout::GpuSimParams (80 bytes, std140).
+// cloth_core::layout::GpuSimParams (144 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gravity;       // m/s² (xyz)
     vec4 stiffness;     // N/m by spring kind: structural, shear, bend
@@ -15,16 +15,24 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     uint grid_nx;
     uint grid_ny;
     uint effects;
+    vec4 wind;          // mean wind velocity, m/s (xyz); w: coefficient × area per vertex, N·s/m
+    vec4 gust;          // x: relative amplitude, y: angular frequency, rad/s
+    vec4 pin_velocity;  // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
+    vec4 pin_amplitude; // pins' oscillation amplitude, m (xyz)
 } params;
 
-// cloth_core::layout::GpuSphere (32 bytes).
+// cloth_core::layout::GpuSphere (64 bytes).
 struct Sphere {
-    vec3 center;        // m
+    vec3 center;        // m, at time 0
     float radius;       // m
     float stiffness;    // k_c, N/m
     float friction;     // c_f
     float damping;      // N·s/m
     float pad;
+    vec3 velocity;      // steady velocity, m/s (MovingSpheres)
+    float omega;        // angular frequency of the oscillation, rad/s
+    vec3 amplitude;     // amplitude of the oscillation, m
+    float pad2;
 };
 
 // cloth_core::layout::GpuSpringRange (8 bytes).

@@ -17,7 +17,7 @@
 #include "effects.glsl"
 
 // Which pass this pipeline runs (see above).
-layout(constant_id = 9) const uint XPBD_PASS = 0u;
+layout(constant_id = 101) const uint XPBD_PASS = 0u;
 
 #include "layout.glsl"
 #include "forces.glsl"
@@ -43,6 +43,8 @@ layout(set = 0, binding = 10, std140) uniform ColorRange {
     uint first_iteration;   // 1: the multipliers start from 0
     uint pad;
 } color;
+
+#include "grid.glsl"
 
 // Δλ = (−C − α̃ λ) / (w_a + w_b + α̃), α̃ = 1/(k Δt²); the ends move by ±w Δλ n.
 void project_spring(inout vec3 x_a, inout vec3 x_b, float inverse_mass_a, float inverse_mass_b,
@@ -122,18 +124,25 @@ vec3 contact_friction(vec3 x, vec3 x_start, vec3 center, float radius, float coe
 
 void predict(uint i) {
     vec4 p = positions_in[i];
+    vec4 state = velocities_in[i];
+    float t = state.w;
+    float h = params.substep_dt;
     vec3 x = p.xyz;
     if (p.w != 0.0) {
-        float h = params.substep_dt;
         float m = params.vertex_mass;
-        vec3 v = velocities_in[i].xyz;
+        vec3 v = state.xyz;
         if (EFFECT_GRAVITY) {
             v += params.gravity.xyz * h;
         }
         if (EFFECT_AIR_DRAG) {
             v += air_drag_force(m, params.air_drag, v) * (h / m);
         }
+        if (EFFECT_WIND) {
+            v += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w) * (h / m);
+        }
         x = x + v * h;
+    } else {
+        x = x + pin_step(t, t + h);
     }
     positions_out[i] = vec4(x, p.w);
     normal_corrections[i] = 0.0;
@@ -165,11 +174,15 @@ void project_spheres(uint i) {
     if (p.w == 0.0) {
         return;
     }
+    float t = velocities_in[i].w;
+    float t_end = t + params.substep_dt;
     vec3 x = p.xyz;
-    vec3 x_start = positions_in[i].xyz;
     float correction = normal_corrections[i];
     for (uint s = 0u; s < params.sphere_count; s++) {
-        correction = correction + project_sphere_swept(x, x_start, spheres[s].center, spheres[s].radius);
+        // Where the sphere ends the substep, and the vertex's start carried along with it.
+        vec3 center = sphere_center(spheres[s], t_end);
+        vec3 x_start = positions_in[i].xyz + (center - sphere_center(spheres[s], t));
+        correction = correction + project_sphere_swept(x, x_start, center, spheres[s].radius);
     }
     positions_out[i] = vec4(x, p.w);
     normal_corrections[i] = correction;
@@ -177,24 +190,28 @@ void project_spheres(uint i) {
 
 void finish(uint i) {
     vec4 p = positions_out[i];
+    float t = velocities_in[i].w;
+    float t_end = t + params.substep_dt;
     vec3 x = p.xyz;
-    vec3 v = vec3(0.0);
+    vec3 v = pin_velocity(t_end);
     if (p.w != 0.0) {
-        vec3 x_start = positions_in[i].xyz;
+        vec3 x0 = positions_in[i].xyz;
         float correction = normal_corrections[i];
         if (EFFECT_FRICTION && correction > 0.0) {
             for (uint s = 0u; s < params.sphere_count; s++) {
-                x = contact_friction(x, x_start, spheres[s].center, spheres[s].radius, spheres[s].friction, correction);
+                vec3 center = sphere_center(spheres[s], t_end);
+                vec3 x_start = x0 + (center - sphere_center(spheres[s], t));
+                x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
             }
             positions_out[i] = vec4(x, p.w);
         }
-        v = (x - x_start) * (1.0 / params.substep_dt);
+        v = (x - x0) * (1.0 / params.substep_dt);
     }
-    velocities_out[i] = vec4(v, 0.0);
+    velocities_out[i] = vec4(v, t_end);
     if (EFFECT_CONTACT) {
         float deepest = 0.0;
         for (uint s = 0u; s < params.sphere_count; s++) {
-            vec3 offset = x - spheres[s].center;
+            vec3 offset = x - sphere_center(spheres[s], t_end);
             deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
         }
         if (deepest > 0.0) {

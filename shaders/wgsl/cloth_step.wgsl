@@ -36,13 +36,30 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     }
     let p = positions_in[i];
     let x = p.xyz;
-    let v = velocities_in[i].xyz;
+    let state = velocities_in[i];
+    let v = state.xyz;
+    // The time of the state read (velocity.w), and of the state written.
+    let t = state.w;
+    let dt = params.substep_dt;
+    let half = dt * 0.5;
+    var t_out = t + dt;       // Euler, Verlet's kick and drift
+    if (STAGE == 2u || STAGE == 4u || STAGE == 6u) {
+        t_out = t;            // Verlet's second kick; RK4's second and fourth stages (same time)
+    }
+    if (STAGE == 3u) {
+        t_out = t + half;     // RK4's first stage
+    }
+    if (STAGE == 3u) {
+        // RK4's first stage keeps the substep's start time for the third (every vertex).
+        rk4_scratch[4u * i] = vec4<f32>(x, t);
+    }
+    if (STAGE == 5u) {
+        t_out = rk4_scratch[4u * i].w + dt; // RK4's third stage: the substep's end
+    }
     var x_new = x;
     var v_new = vec3<f32>(0.0);
     if (p.w != 0.0) {
         let mass = params.vertex_mass;
-        let dt = params.substep_dt;
-        let half = dt * 0.5;
         // The step the friction's stopping term refers to: what this stage's velocity update spans.
         var friction_dt = dt;
         if (STAGE == 1u || STAGE == 2u) {
@@ -70,19 +87,24 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         if (EFFECT_AIR_DRAG) {
             force += air_drag_force(mass, params.air_drag, v);
         }
+        if (EFFECT_WIND) {
+            force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
+        }
+        // Against a moving sphere, contact and friction act on the velocity relative to it.
         let other_forces = force;
         // RK4's last stage: the normal of a contact whose friction holds the vertex (it sticks).
         var stuck = false;
         var stick_normal = vec3<f32>(0.0);
         if (EFFECT_CONTACT) {
             for (var s = 0u; s < params.sphere_count; s++) {
-                let c = contact_force(x, v, spheres[s]);
+                let v_rel = v - sphere_velocity(spheres[s], t);
+                let c = contact_force(x, v_rel, sphere_center(spheres[s], t), spheres[s]);
                 if (c.hit) {
                     force += c.force;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v, c.normal, mass, friction_dt, spheres[s].friction);
+                        force += friction_force(other_forces, v_rel, c.normal, mass, friction_dt, spheres[s].friction);
                         if (STAGE == 6u && !stuck
-                            && friction_holds(other_forces, v, c.normal, mass, friction_dt, spheres[s].friction)) {
+                            && friction_holds(other_forces, v_rel, c.normal, mass, friction_dt, spheres[s].friction)) {
                             stuck = true;
                             stick_normal = c.normal;
                         }
@@ -105,7 +127,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             let a = force * (1.0 / mass);
             let slot = 4u * i;
             if (STAGE == 3u) {
-                rk4_scratch[slot] = vec4<f32>(x, 0.0);
+                rk4_scratch[slot] = vec4<f32>(x, t);
                 rk4_scratch[slot + 1u] = vec4<f32>(v, 0.0);
                 rk4_scratch[slot + 2u] = vec4<f32>(v, 0.0);
                 rk4_scratch[slot + 3u] = vec4<f32>(a, 0.0);
@@ -138,10 +160,12 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
                 }
             }
         }
-    } else if (STAGE >= 3u && STAGE <= 5u) {
-        v_new = v; // a pinned vertex's intermediate RK4 states keep its (zero) velocity
+    } else {
+        // A pin stays put, or follows the pin motion (MovingPins) from t to t_out.
+        x_new = x + pin_step(t, t_out);
+        v_new = pin_velocity(t_out);
     }
-    velocities_out[i] = vec4<f32>(v_new, 0.0);
+    velocities_out[i] = vec4<f32>(v_new, t_out);
     if (STAGE == 2u) {
         return; // the second kick leaves the positions of the first stage as they are
     }
@@ -150,7 +174,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if (EFFECT_CONTACT && (STAGE == 0u || STAGE == 1u || STAGE == 6u)) {
         var deepest = 0.0;
         for (var s = 0u; s < params.sphere_count; s++) {
-            let offset = x_new - spheres[s].center;
+            let offset = x_new - sphere_center(spheres[s], t_out);
             deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
         }
         if (deepest > 0.0) {

@@ -17,9 +17,12 @@ override EFFECT_SPRING_DAMPING: bool = true;
 override EFFECT_CONTACT: bool = true;
 override EFFECT_FRICTION: bool = true;
 override EFFECT_AIR_DRAG: bool = false;
+override EFFECT_WIND: bool = false;
+override EFFECT_MOVING_PINS: bool = false;
+override EFFECT_MOVING_SPHERES: bool = false;
 override WORKGROUP_SIZE: u32 = 64u;
 
-// cloth_core::layout::GpuSimParams (80 bytes).
+// cloth_core::layout::GpuSimParams (144 bytes).
 struct SimParams {
     gravity: vec4<f32>,      // m/s² (xyz)
     stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
@@ -32,16 +35,24 @@ struct SimParams {
     grid_nx: u32,
     grid_ny: u32,
     effects: u32,
+    wind: vec4<f32>,         // mean wind velocity, m/s (xyz); w: coefficient × area per vertex, N·s/m
+    gust: vec4<f32>,         // x: relative amplitude, y: angular frequency, rad/s
+    pin_velocity: vec4<f32>, // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
+    pin_amplitude: vec4<f32>,// pins' oscillation amplitude, m (xyz)
 }
 
-// cloth_core::layout::GpuSphere (32 bytes).
+// cloth_core::layout::GpuSphere (64 bytes).
 struct Sphere {
-    center: vec3<f32>,       // m
+    center: vec3<f32>,       // m, at time 0
     radius: f32,             // m
     stiffness: f32,          // k_c, N/m
     friction: f32,           // c_f
     damping: f32,            // N·s/m
     pad: f32,
+    velocity: vec3<f32>,     // steady velocity, m/s (MovingSpheres)
+    omega: f32,              // angular frequency of the oscillation, rad/s
+    amplitude: vec3<f32>,    // amplitude of the oscillation, m
+    pad2: f32,
 }
 
 // cloth_core::layout::GpuSpringRange (8 bytes).
@@ -103,10 +114,11 @@ struct Contact {
     force: vec3<f32>,
 }
 
-// Brief: F_c = k_c d, plus damping of the normal approach velocity.
-fn contact_force(x: vec3<f32>, v: vec3<f32>, s: Sphere) -> Contact {
+// Brief: F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
+// whose centre is at `center` now).
+fn contact_force(x: vec3<f32>, v: vec3<f32>, center: vec3<f32>, s: Sphere) -> Contact {
     var c: Contact;
-    let offset = x - s.center;
+    let offset = x - center;
     let distance = sqrt(dot(offset, offset));
     let depth = s.radius - distance;
     c.hit = depth > 0.0;
@@ -147,6 +159,85 @@ fn friction_holds(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
     let v_t = v - normal * dot(v, normal);
     let tangential = r_ot + v_t * (mass / dt);
     return sqrt(dot(tangential, tangential)) <= coefficient * sqrt(dot(r_on, r_on));
+}
+
+// Linear wind pressure (not in the brief): F = c A ((w − v)·n) n, n the cloth's unit normal.
+fn wind_force(normal: vec3<f32>, v: vec3<f32>, wind: vec3<f32>, coefficient_area: f32) -> vec3<f32> {
+    return normal * (coefficient_area * dot(wind - v, normal));
+}
+
+// The wind at time t: w (1 + a sin(ω_g t)) (cloth_core::motion::wind_velocity).
+fn wind_velocity(t: f32) -> vec3<f32> {
+    return params.wind.xyz * (1.0 + params.gust.x * sin(params.gust.y * t));
+}
+
+// A prescribed motion (cloth_core::motion::MotionOf): d(t) = velocity t + amplitude sin(ω t).
+fn motion_displacement(velocity: vec3<f32>, amplitude: vec3<f32>, omega: f32, t: f32) -> vec3<f32> {
+    return velocity * t + amplitude * sin(omega * t);
+}
+
+// d'(t) = velocity + amplitude ω cos(ω t).
+fn motion_velocity(velocity: vec3<f32>, amplitude: vec3<f32>, omega: f32, t: f32) -> vec3<f32> {
+    return velocity + amplitude * (omega * cos(omega * t));
+}
+
+// A pin's move from time `from` to `to` (zero without MovingPins).
+fn pin_step(from_t: f32, to_t: f32) -> vec3<f32> {
+    if (EFFECT_MOVING_PINS) {
+        let v = params.pin_velocity;
+        return motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, to_t)
+            - motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, from_t);
+    }
+    return vec3<f32>(0.0);
+}
+
+// A pin's velocity at time t (zero without MovingPins).
+fn pin_velocity(t: f32) -> vec3<f32> {
+    if (EFFECT_MOVING_PINS) {
+        let v = params.pin_velocity;
+        return motion_velocity(v.xyz, params.pin_amplitude.xyz, v.w, t);
+    }
+    return vec3<f32>(0.0);
+}
+
+// Where sphere `s` is at time t, and how fast it moves (still without MovingSpheres).
+fn sphere_center(s: Sphere, t: f32) -> vec3<f32> {
+    if (EFFECT_MOVING_SPHERES) {
+        return s.center + motion_displacement(s.velocity, s.amplitude, s.omega, t);
+    }
+    return s.center;
+}
+
+fn sphere_velocity(s: Sphere, t: f32) -> vec3<f32> {
+    if (EFFECT_MOVING_SPHERES) {
+        return motion_velocity(s.velocity, s.amplitude, s.omega, t);
+    }
+    return vec3<f32>(0.0);
+}
+
+// The cloth's unit normal at vertex i from its grid neighbours in positions_in (declared by each
+// kernel): (x[i+1,j] − x[i−1,j]) × (x[i,j+1] − x[i,j−1]), one-sided at the edges
+// (cloth_core::forces::grid_normal).
+fn grid_normal(index: u32) -> vec3<f32> {
+    let nx = params.grid_nx;
+    let i = index % nx;
+    let j = index / nx;
+    var left = i;
+    if (i > 0u) { left = i - 1u; }
+    var right = i;
+    if (i + 1u < nx) { right = i + 1u; }
+    var down = j;
+    if (j > 0u) { down = j - 1u; }
+    var up = j;
+    if (j + 1u < params.grid_ny) { up = j + 1u; }
+    let along_u = positions_in[j * nx + right].xyz - positions_in[j * nx + left].xyz;
+    let along_v = positions_in[up * nx + i].xyz - positions_in[down * nx + i].xyz;
+    let n = cross(along_u, along_v);
+    let length = sqrt(dot(n, n));
+    if (length > 0.0) {
+        return n * (1.0 / length);
+    }
+    return vec3<f32>(0.0);
 }
 
 fn kind_enabled(kind: u32) -> bool {

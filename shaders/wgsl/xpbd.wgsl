@@ -125,18 +125,25 @@ fn contact_friction(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, radius:
 
 fn predict(i: u32) {
     let p = positions_in[i];
+    let state = velocities_in[i];
+    let t = state.w;
+    let h = params.substep_dt;
     var x = p.xyz;
     if (p.w != 0.0) {
-        let h = params.substep_dt;
         let m = params.vertex_mass;
-        var v = velocities_in[i].xyz;
+        var v = state.xyz;
         if (EFFECT_GRAVITY) {
             v += params.gravity.xyz * h;
         }
         if (EFFECT_AIR_DRAG) {
             v += air_drag_force(m, params.air_drag, v) * (h / m);
         }
+        if (EFFECT_WIND) {
+            v += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w) * (h / m);
+        }
         x = x + v * h;
+    } else {
+        x = x + pin_step(t, t + h);
     }
     positions_out[i] = vec4<f32>(x, p.w);
     normal_corrections[i] = 0.0;
@@ -170,11 +177,15 @@ fn project_spheres(i: u32) {
     if (p.w == 0.0) {
         return;
     }
+    let t = velocities_in[i].w;
+    let t_end = t + params.substep_dt;
     var x = p.xyz;
-    let x_start = positions_in[i].xyz;
     var correction = normal_corrections[i];
     for (var s = 0u; s < params.sphere_count; s++) {
-        let r = project_sphere_swept(x, x_start, spheres[s].center, spheres[s].radius);
+        // Where the sphere ends the substep, and the vertex's start carried along with it.
+        let center = sphere_center(spheres[s], t_end);
+        let x_start = positions_in[i].xyz + (center - sphere_center(spheres[s], t));
+        let r = project_sphere_swept(x, x_start, center, spheres[s].radius);
         x = r.x;
         correction = correction + r.depth;
     }
@@ -184,25 +195,28 @@ fn project_spheres(i: u32) {
 
 fn finish(i: u32) {
     let p = positions_out[i];
+    let t = velocities_in[i].w;
+    let t_end = t + params.substep_dt;
     var x = p.xyz;
-    var v = vec3<f32>(0.0);
+    var v = pin_velocity(t_end);
     if (p.w != 0.0) {
-        let x_start = positions_in[i].xyz;
+        let x0 = positions_in[i].xyz;
         let correction = normal_corrections[i];
         if (EFFECT_FRICTION && correction > 0.0) {
             for (var s = 0u; s < params.sphere_count; s++) {
-                x = contact_friction(x, x_start, spheres[s].center, spheres[s].radius, spheres[s].friction,
-                                     correction);
+                let center = sphere_center(spheres[s], t_end);
+                let x_start = x0 + (center - sphere_center(spheres[s], t));
+                x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
             }
             positions_out[i] = vec4<f32>(x, p.w);
         }
-        v = (x - x_start) * (1.0 / params.substep_dt);
+        v = (x - x0) * (1.0 / params.substep_dt);
     }
-    velocities_out[i] = vec4<f32>(v, 0.0);
+    velocities_out[i] = vec4<f32>(v, t_end);
     if (EFFECT_CONTACT) {
         var deepest = 0.0;
         for (var s = 0u; s < params.sphere_count; s++) {
-            let offset = x - spheres[s].center;
+            let offset = x - sphere_center(spheres[s], t_end);
             deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
         }
         if (deepest > 0.0) {

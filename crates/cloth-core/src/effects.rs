@@ -26,11 +26,17 @@ pub enum Effect {
     Friction,
     /// Linear air drag `F = -m γ v` (not in the brief; helps a drape settle).
     AirDrag,
+    /// Wind: air moving at `scene.wind` (uniform or gusting) pushes on the cloth along its normal.
+    Wind,
+    /// The pins follow `cloth.pin_motion` (moving attachments) instead of staying put.
+    MovingPins,
+    /// The spheres follow their `motion` instead of staying put.
+    MovingSpheres,
 }
 
 impl Effect {
     /// Every effect, in a stable order (the order of [`EffectSet::shader_constants`]).
-    pub const ALL: [Effect; 8] = [
+    pub const ALL: [Effect; 11] = [
         Effect::Gravity,
         Effect::StructuralSprings,
         Effect::ShearSprings,
@@ -39,6 +45,9 @@ impl Effect {
         Effect::SphereContact,
         Effect::Friction,
         Effect::AirDrag,
+        Effect::Wind,
+        Effect::MovingPins,
+        Effect::MovingSpheres,
     ];
 
     /// Name of the boolean shader constant that compiles this effect in or out
@@ -53,6 +62,9 @@ impl Effect {
             Effect::SphereContact => "EFFECT_CONTACT",
             Effect::Friction => "EFFECT_FRICTION",
             Effect::AirDrag => "EFFECT_AIR_DRAG",
+            Effect::Wind => "EFFECT_WIND",
+            Effect::MovingPins => "EFFECT_MOVING_PINS",
+            Effect::MovingSpheres => "EFFECT_MOVING_SPHERES",
         }
     }
 

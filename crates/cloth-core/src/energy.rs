@@ -52,8 +52,14 @@ impl Energy {
         }
         if scene.effects.contains(Effect::SphereContact) {
             for sphere in &scene.spheres {
+                // Where the sphere is at the state's time.
+                let mut center = sphere.center;
+                if scene.effects.contains(Effect::MovingSpheres) {
+                    let d = crate::motion::MotionOf::<f64>::of(&sphere.motion).displacement(state.time_s).to_f64();
+                    center = [center[0] + d[0], center[1] + d[1], center[2] + d[2]];
+                }
                 for i in 0..state.positions.len() {
-                    let depth = sphere.radius - crate::springs::distance(p(i), sphere.center);
+                    let depth = sphere.radius - crate::springs::distance(p(i), center);
                     if depth > 0.0 {
                         e.contact += 0.5 * sphere.stiffness * depth * depth;
                     }

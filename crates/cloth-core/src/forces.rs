@@ -45,6 +45,28 @@ pub fn air_drag_force<R: Real>(mass: R, rate: R, v: Vec3<R>) -> Vec3<R> {
     v * (-(mass * rate))
 }
 
+/// The cloth's unit normal at vertex `index` of an `nx × ny` grid, from its grid neighbours:
+/// `n = (x[i+1,j] − x[i−1,j]) × (x[i,j+1] − x[i,j−1])`, normalised (one-sided differences at the
+/// edges); zero where the cloth is folded flat on itself.
+pub fn grid_normal<R: Real>(x: &[Vec3<R>], index: usize, nx: usize, ny: usize) -> Vec3<R> {
+    let (i, j) = (index % nx, index / nx);
+    let (left, right) = (if i > 0 { i - 1 } else { i }, if i + 1 < nx { i + 1 } else { i });
+    let (down, up) = (if j > 0 { j - 1 } else { j }, if j + 1 < ny { j + 1 } else { j });
+    let along_u = x[j * nx + right] - x[j * nx + left];
+    let along_v = x[up * nx + i] - x[down * nx + i];
+    let n = along_u.cross(along_v);
+    let length = n.length();
+    if length > R::zero() { n * (R::one() / length) } else { Vec3::zero() }
+}
+
+/// Wind on a vertex, N: `F = c A ((w − v) · n) n`, the air's velocity relative to the vertex
+/// projected on the cloth's unit normal `n`, times `c A` (N·s/m: the wind coefficient, N·s/m³,
+/// times the cloth's area per vertex). Not in the brief; the `Wind` effect. A cloth edge-on to
+/// the wind feels none; one facing it is pushed at the relative normal speed.
+pub fn wind_force<R: Real>(normal: Vec3<R>, v: Vec3<R>, wind: Vec3<R>, coefficient_area: R) -> Vec3<R> {
+    normal * (coefficient_area * (wind - v).dot(normal))
+}
+
 /// A vertex in contact with a sphere.
 #[derive(Clone, Copy, Debug)]
 pub struct Contact<R> {

@@ -9,10 +9,14 @@
 //! | buffer | element | count |
 //! |---|---|---|
 //! | positions (×2, ping-pong) | `[f32; 4]`: xyz m, w = 1 free / 0 pinned | vertices |
-//! | velocities (×2, ping-pong) | `[f32; 4]`: xyz m/s, w unused | vertices |
+//! | velocities (×2, ping-pong) | `[f32; 4]`: xyz m/s, w = the state's time, s | vertices |
 //! | spring ranges | [`GpuSpringRange`] | vertices |
 //! | spring ends | [`GpuSpringEnd`] | 2 × springs |
 //! | spheres | [`GpuSphere`] | spheres (at least 1 slot) |
+//!
+//! Velocities carry the time of their state in `w` (s, f32): every kernel reads the time of the
+//! state it reads there and writes the time of the state it writes, so moving pins, moving
+//! spheres and gusts know the time of each stage without a host round trip.
 //! | parameters (uniform) | [`GpuSimParams`] | 1 |
 //!
 //! XPBD (`Integrator::Xpbd`) adds, for its constraint projection:
@@ -66,13 +70,22 @@ pub struct GpuSimParams {
     /// Effect bit mask (`EffectSet::bits`), for diagnostics; the shader branches on override /
     /// specialization constants, not on this.
     pub effects: u32,
+    /// Wind (`Wind` effect): mean velocity, m/s (xyz), and `w` = coefficient × area per vertex,
+    /// N·s/m.
+    pub wind: [f32; 4],
+    /// Gusts: `x` relative amplitude, `y` angular frequency `2π / period`, rad/s (zw unused).
+    pub gust: [f32; 4],
+    /// Pin motion (`MovingPins`): steady velocity, m/s (xyz), and `w` angular frequency, rad/s.
+    pub pin_velocity: [f32; 4],
+    /// Pin motion: amplitude of the oscillation, m (xyz; w unused).
+    pub pin_amplitude: [f32; 4],
 }
 
-/// One sphere collider (32 bytes).
+/// One sphere collider (64 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuSphere {
-    /// Centre, m.
+    /// Centre at time 0, m.
     pub center: [f32; 3],
     /// Radius, m.
     pub radius: f32,
@@ -84,6 +97,14 @@ pub struct GpuSphere {
     pub damping: f32,
     /// Padding to 32 bytes.
     pub _pad: f32,
+    /// Motion (`MovingSpheres`): steady velocity, m/s.
+    pub velocity: [f32; 3],
+    /// Motion: angular frequency of the oscillation, rad/s.
+    pub omega: f32,
+    /// Motion: amplitude of the oscillation, m.
+    pub amplitude: [f32; 3],
+    /// Padding to 64 bytes.
+    pub _pad2: f32,
 }
 
 /// A vertex's slice of the spring-end buffer.
@@ -162,6 +183,10 @@ impl GpuSimParams {
         let s = &scene.springs;
         let [nx, ny] = scene.cloth.resolution;
         let f = |v: f64| v as f32;
+        let w = &scene.wind;
+        let area_per_vertex =
+            scene.cloth.size[0] / (nx.max(2) - 1) as f64 * scene.cloth.size[1] / (ny.max(2) - 1) as f64;
+        let pins = &scene.cloth.pin_motion;
         Self {
             gravity: [f(scene.gravity[0]), f(scene.gravity[1]), f(scene.gravity[2]), 0.0],
             stiffness: [f(s.structural.stiffness), f(s.shear.stiffness), f(s.bend.stiffness), 0.0],
@@ -174,7 +199,18 @@ impl GpuSimParams {
             grid_nx: nx,
             grid_ny: ny,
             effects: scene.effects.bits(),
+            wind: [f(w.velocity[0]), f(w.velocity[1]), f(w.velocity[2]), f(w.coefficient * area_per_vertex)],
+            gust: [f(w.gust_amplitude), f(2.0 * std::f64::consts::PI / w.gust_period), 0.0, 0.0],
+            pin_velocity: [f(pins.velocity[0]), f(pins.velocity[1]), f(pins.velocity[2]), f(pins.angular_frequency())],
+            pin_amplitude: [f(pins.amplitude[0]), f(pins.amplitude[1]), f(pins.amplitude[2]), 0.0],
         }
+    }
+
+    /// The wind coefficient times the area per vertex, N·s/m (`wind.w`), in `f64`.
+    pub fn wind_coefficient_area(scene: &Scene) -> f64 {
+        let [nx, ny] = scene.cloth.resolution;
+        scene.wind.coefficient * scene.cloth.size[0] / (nx.max(2) - 1) as f64 * scene.cloth.size[1]
+            / (ny.max(2) - 1) as f64
     }
 }
 
@@ -271,7 +307,7 @@ impl GpuBuffers {
             + 2 * b(self.velocities.len(), 16)
             + b(self.spring_ranges.len(), 8)
             + b(self.spring_ends.len(), 16)
-            + b(self.spheres.len(), 32)
+            + b(self.spheres.len(), 64)
             + size_of::<GpuSimParams>() as u64
             + xpbd
     }
@@ -317,6 +353,10 @@ impl GpuSphere {
             friction: s.friction as f32,
             damping: s.damping as f32,
             _pad: 0.0,
+            velocity: [s.motion.velocity[0] as f32, s.motion.velocity[1] as f32, s.motion.velocity[2] as f32],
+            omega: s.motion.angular_frequency() as f32,
+            amplitude: [s.motion.amplitude[0] as f32, s.motion.amplitude[1] as f32, s.motion.amplitude[2] as f32],
+            _pad2: 0.0,
         }
     }
 }
@@ -352,6 +392,10 @@ pub fn struct_layouts() -> Vec<StructLayout> {
                 ("grid_nx", offset_of!(GpuSimParams, grid_nx)),
                 ("grid_ny", offset_of!(GpuSimParams, grid_ny)),
                 ("effects", offset_of!(GpuSimParams, effects)),
+                ("wind", offset_of!(GpuSimParams, wind)),
+                ("gust", offset_of!(GpuSimParams, gust)),
+                ("pin_velocity", offset_of!(GpuSimParams, pin_velocity)),
+                ("pin_amplitude", offset_of!(GpuSimParams, pin_amplitude)),
             ],
         },
         StructLayout {
@@ -364,6 +408,10 @@ pub fn struct_layouts() -> Vec<StructLayout> {
                 ("friction", offset_of!(GpuSphere, friction)),
                 ("damping", offset_of!(GpuSphere, damping)),
                 ("pad", offset_of!(GpuSphere, _pad)),
+                ("velocity", offset_of!(GpuSphere, velocity)),
+                ("omega", offset_of!(GpuSphere, omega)),
+                ("amplitude", offset_of!(GpuSphere, amplitude)),
+                ("pad2", offset_of!(GpuSphere, _pad2)),
             ],
         },
         StructLayout {
@@ -436,7 +484,7 @@ impl MemoryEstimate {
             0
         };
         let device_bytes =
-            4 * 16 * vertices + 8 * vertices + 16 * ends + 32 * scene.spheres.len().max(1) as u128 + 80 + xpbd;
+            4 * 16 * vertices + 8 * vertices + 16 * ends + 64 * scene.spheres.len().max(1) as u128 + 144 + xpbd;
         // Host: f64 positions + pins, the spring list (32 B each) and f64 lists (24 B each).
         let host_bytes = vertices * (24 + 1 + 4) + springs * 32 + ends * 24 + device_bytes;
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
@@ -473,9 +521,9 @@ mod tests {
 
     #[test]
     fn layouts_have_the_sizes_the_shaders_expect() {
-        assert_eq!(size_of::<GpuSimParams>(), 80);
+        assert_eq!(size_of::<GpuSimParams>(), 144);
         assert_eq!(size_of::<GpuSimParams>() % 16, 0, "uniform blocks are multiples of 16 bytes");
-        assert_eq!(size_of::<GpuSphere>(), 32);
+        assert_eq!(size_of::<GpuSphere>(), 64);
         assert_eq!(size_of::<GpuSpringRange>(), 8);
         assert_eq!(size_of::<GpuSpringEnd>(), 16);
         assert_eq!(size_of::<GpuConstraint>(), 16);

@@ -9,6 +9,7 @@
 //! * [`coloring`]: the springs in sets that share no vertex (XPBD's parallel projection order);
 //! * [`layout`]: the GPU buffer layouts (`#[repr(C)]`, `bytemuck`), shared by all backends;
 //! * [`forces`]: the brief's force model, one function per force;
+//! * [`motion`]: moving pins and spheres, and the gusting wind;
 //! * [`constraints`]: XPBD's constraint projections, one function per constraint;
 //! * [`reference`](mod@reference): the CPU reference stepper, the test oracle;
 //! * [`integrator`]: semi-implicit Euler (the brief's), velocity Verlet, RK4;
@@ -39,6 +40,7 @@ pub mod grid;
 pub mod integrator;
 pub mod layout;
 pub mod model;
+pub mod motion;
 pub mod real;
 pub mod reference;
 pub mod scene;

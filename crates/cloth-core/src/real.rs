@@ -54,6 +54,10 @@ impl<R: Real> Vec3<R> {
     pub fn to_f64(self) -> [f64; 3] {
         [self.x.to_f64_lossy(), self.y.to_f64_lossy(), self.z.to_f64_lossy()]
     }
+    /// Cross product `a × b`.
+    pub fn cross(self, o: Self) -> Self {
+        Self::new(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
+    }
     /// Dot product `a · b`.
     pub fn dot(self, other: Self) -> R {
         self.x * other.x + self.y * other.y + self.z * other.z

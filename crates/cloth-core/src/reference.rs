@@ -10,10 +10,12 @@ use crate::constraints::{contact_friction, project_sphere_swept, project_spring}
 use crate::effects::Effect;
 use crate::error::SimError;
 use crate::forces::{
-    air_drag_force, contact_force, friction_force, friction_holds, gravity_force, integrate, spring_force, stick,
+    air_drag_force, contact_force, friction_force, friction_holds, gravity_force, grid_normal, integrate, spring_force,
+    stick, wind_force,
 };
 use crate::integrator::{Integrator, XPBD_ITERATIONS};
 use crate::model::ClothModel;
+use crate::motion::{MotionOf, wind_velocity};
 use crate::real::{Real, Vec3};
 use crate::scene::Scene;
 use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
@@ -46,6 +48,18 @@ struct Sphere<R> {
     stiffness: R,
     friction: R,
     damping: R,
+    motion: MotionOf<R>,
+}
+
+impl<R: Real> Sphere<R> {
+    /// Centre (m) and velocity (m/s) at time `t`: moving only with the `MovingSpheres` effect.
+    fn at(&self, t: R, moving: bool) -> (Vec3<R>, Vec3<R>) {
+        if moving {
+            (self.center + self.motion.displacement(t), self.motion.velocity_at(t))
+        } else {
+            (self.center, Vec3::zero())
+        }
+    }
 }
 
 /// Parameters of one substep in precision `R` (the same values the GPU gets as `f32`).
@@ -58,6 +72,16 @@ struct Params<R> {
     dt: R,
     air_drag: R,
     spheres: Vec<Sphere<R>>,
+    /// Mean wind velocity, m/s; coefficient × area per vertex, N·s/m; gust amplitude and
+    /// angular frequency, rad/s.
+    wind: Vec3<R>,
+    wind_coefficient_area: R,
+    gust_amplitude: R,
+    gust_omega: R,
+    pin_motion: MotionOf<R>,
+    /// Grid vertices along u and v (the wind's normals).
+    nx: usize,
+    ny: usize,
 }
 
 impl<R: Real> Params<R> {
@@ -73,6 +97,7 @@ impl<R: Real> Params<R> {
                     stiffness: R::of(s.stiffness),
                     friction: R::of(s.friction),
                     damping: R::of(s.damping),
+                    motion: MotionOf::of(&s.motion),
                 })
                 .collect()
         } else {
@@ -86,6 +111,23 @@ impl<R: Real> Params<R> {
             dt: R::of(scene.substep_dt()),
             air_drag: R::of(scene.air_drag),
             spheres,
+            wind: Vec3::from_f64(scene.wind.velocity),
+            wind_coefficient_area: R::of(crate::layout::GpuSimParams::wind_coefficient_area(scene)),
+            gust_amplitude: R::of(scene.wind.gust_amplitude),
+            gust_omega: R::of(2.0 * std::f64::consts::PI / scene.wind.gust_period),
+            pin_motion: MotionOf::of(&scene.cloth.pin_motion),
+            nx: scene.cloth.resolution[0] as usize,
+            ny: scene.cloth.resolution[1] as usize,
+        }
+    }
+
+    /// A pin's move from time `from` to `to` (m) and its velocity at `to` (m/s): zero and zero
+    /// without `MovingPins`.
+    fn pin_step(&self, from: R, to: R, moving: bool) -> (Vec3<R>, Vec3<R>) {
+        if moving {
+            (self.pin_motion.displacement(to) - self.pin_motion.displacement(from), self.pin_motion.velocity_at(to))
+        } else {
+            (Vec3::zero(), Vec3::zero())
         }
     }
 }
@@ -106,6 +148,9 @@ pub struct ReferenceSimulator<R: Real> {
     next_positions: Vec<Vec3<R>>,
     next_velocities: Vec<Vec3<R>>,
     time_s: f64,
+    /// The state's time in this precision, s, advanced as the GPU advances it (`velocity.w`):
+    /// what moving pins, moving spheres and gusts see.
+    clock: R,
     max_penetration: R,
     substeps_run: u64,
 }
@@ -155,9 +200,31 @@ impl<R: Real> ReferenceSimulator<R> {
             positions,
             velocities,
             time_s: 0.0,
+            clock: R::zero(),
             max_penetration: R::zero(),
             substeps_run: 0,
             scene,
+        }
+    }
+
+    fn moving_pins(&self) -> bool {
+        self.scene.effects.contains(Effect::MovingPins)
+    }
+
+    fn moving_spheres(&self) -> bool {
+        self.scene.effects.contains(Effect::MovingSpheres)
+    }
+
+    /// The read-only data of a force evaluation at state `(x, v)` and time `time`.
+    fn context<'a>(&'a self, x: &'a [Vec3<R>], v: &'a [Vec3<R>], time: R) -> StepContext<'a, R> {
+        StepContext {
+            params: &self.params,
+            effects: self.scene.effects,
+            first: &self.first,
+            ends: &self.ends,
+            x,
+            v,
+            time,
         }
     }
 
@@ -187,36 +254,22 @@ impl<R: Real> ReferenceSimulator<R> {
         self.time_s += self.scene.substep_dt();
     }
 
-    /// Forces on every vertex for the state `(x, v)` (zero on pinned vertices); `friction_dt` is
-    /// the step the friction's stopping term refers to.
-    fn forces(&self, x: &[Vec3<R>], v: &[Vec3<R>], friction_dt: R) -> Vec<Vec3<R>> {
-        let ctx = StepContext {
-            params: &self.params,
-            effects: self.scene.effects,
-            first: &self.first,
-            ends: &self.ends,
-            x,
-            v,
-        };
-        let pinned = &self.pinned;
-        (0..x.len())
-            .into_par_iter()
-            .with_min_len(PARALLEL_CHUNK)
-            .map(|i| if pinned[i] { Vec3::zero() } else { ctx.vertex_force(i, friction_dt) })
-            .collect()
+    /// Forces on every vertex for the state `(x, v)` at time `time` (zero on pinned vertices);
+    /// `friction_dt` is the step the friction's stopping term refers to.
+    fn forces(&self, x: &[Vec3<R>], v: &[Vec3<R>], time: R, friction_dt: R) -> Vec<Vec3<R>> {
+        self.forces_and_sticks(x, v, time, friction_dt).0
     }
 
     /// As [`Self::forces`], with, for each vertex, the normal of a contact whose friction holds it
     /// (static friction), if any.
-    fn forces_and_sticks(&self, x: &[Vec3<R>], v: &[Vec3<R>], friction_dt: R) -> (Vec<Vec3<R>>, Vec<Option<Vec3<R>>>) {
-        let ctx = StepContext {
-            params: &self.params,
-            effects: self.scene.effects,
-            first: &self.first,
-            ends: &self.ends,
-            x,
-            v,
-        };
+    fn forces_and_sticks(
+        &self,
+        x: &[Vec3<R>],
+        v: &[Vec3<R>],
+        time: R,
+        friction_dt: R,
+    ) -> (Vec<Vec3<R>>, Vec<Option<Vec3<R>>>) {
+        let ctx = self.context(x, v, time);
         let pinned = &self.pinned;
         (0..x.len())
             .into_par_iter()
@@ -230,19 +283,38 @@ impl<R: Real> ReferenceSimulator<R> {
         x.iter().zip(d).zip(&self.pinned).map(|((x, d), &p)| if p { *x } else { *x + *d * s }).collect()
     }
 
+    /// Moves the pinned vertices of the state `(x, v)` from time `from` to `to` (`MovingPins`):
+    /// `x += d(to) − d(from)`, `v = d'(to)`; without it they keep `x` and a zero velocity.
+    fn move_pins(&self, x: &mut [Vec3<R>], v: &mut [Vec3<R>], from: R, to: R) {
+        let (step, velocity) = self.params.pin_step(from, to, self.moving_pins());
+        for i in 0..x.len() {
+            if self.pinned[i] {
+                x[i] = x[i] + step;
+                v[i] = velocity;
+            }
+        }
+    }
+
     /// Velocity Verlet: `v½ = v + ½Δt a(x, v)`, `x' = x + Δt v½`, `v' = v½ + ½Δt a(x', v½)`.
     fn verlet_substep(&mut self) {
         let p = &self.params;
         // The same operations, in the same order, as the GPU kernels' Verlet stages.
         let (h, half) = (p.dt, p.dt * R::of(0.5));
         let kick = half / p.mass;
-        let f1 = self.forces(&self.positions, &self.velocities, half);
-        let v_half = self.offset(&self.velocities, &f1, kick);
-        let x_new = self.offset(&self.positions, &v_half, h);
-        let f2 = self.forces(&x_new, &v_half, half);
-        let v_new = self.offset(&v_half, &f2, kick);
+        let (t, t1) = (self.clock, self.clock + h);
+        let f1 = self.forces(&self.positions, &self.velocities, t, half);
+        let mut v_half = self.offset(&self.velocities, &f1, kick);
+        let mut x_new = self.offset(&self.positions, &v_half, h);
+        self.move_pins(&mut x_new, &mut v_half, t, t1);
+        let f2 = self.forces(&x_new, &v_half, t1, half);
+        let mut v_new = self.offset(&v_half, &f2, kick);
+        let (_, pin_velocity) = self.params.pin_step(t1, t1, self.moving_pins());
+        for (v, _) in v_new.iter_mut().zip(&self.pinned).filter(|(_, pinned)| **pinned) {
+            *v = pin_velocity;
+        }
         self.positions = x_new;
-        self.velocities = v_new.into_iter().zip(&self.pinned).map(|(v, &p)| if p { Vec3::zero() } else { v }).collect();
+        self.velocities = v_new;
+        self.clock = t1;
     }
 
     /// Classical fourth-order Runge–Kutta on `(x, v)` with `x' = v`, `v' = F(x, v)/m`; a vertex
@@ -251,16 +323,32 @@ impl<R: Real> ReferenceSimulator<R> {
         let p = &self.params;
         let (h, half, sixth) = (p.dt, p.dt * R::of(0.5), p.dt / R::of(6.0));
         let inv_m = R::one() / p.mass;
+        // The stages' times, as the GPU computes them from the substep's start.
+        let (t, t2, t4) = (self.clock, self.clock + half, self.clock + h);
         let (x, v) = (&self.positions, &self.velocities);
         let accel = |f: Vec<Vec3<R>>| -> Vec<Vec3<R>> { f.into_iter().map(|f| f * inv_m).collect() };
         // Stage k: position derivative = the stage's velocity, velocity derivative = a(stage).
-        let a1 = accel(self.forces(x, v, h));
-        let (x2, v2) = (self.offset(x, v, half), self.offset(v, &a1, half));
-        let a2 = accel(self.forces(&x2, &v2, h));
-        let (x3, v3) = (self.offset(x, &v2, half), self.offset(v, &a2, half));
-        let a3 = accel(self.forces(&x3, &v3, h));
-        let (x4, v4) = (self.offset(x, &v3, h), self.offset(v, &a3, h));
-        let (f4, sticks) = self.forces_and_sticks(&x4, &v4, h);
+        let a1 = accel(self.forces(x, v, t, h));
+        let (mut x2, mut v2) = (self.offset(x, v, half), self.offset(v, &a1, half));
+        self.move_pins(&mut x2, &mut v2, t, t2);
+        let a2 = accel(self.forces(&x2, &v2, t2, h));
+        let (mut x3, mut v3) = (self.offset(x, &v2, half), self.offset(v, &a2, half));
+        // A pin's third-stage state is its second's (the GPU moves it from there by zero).
+        for i in 0..x.len() {
+            if self.pinned[i] {
+                x3[i] = x2[i];
+            }
+        }
+        self.move_pins(&mut x3, &mut v3, t2, t2);
+        let a3 = accel(self.forces(&x3, &v3, t2, h));
+        let (mut x4, mut v4) = (self.offset(x, &v3, h), self.offset(v, &a3, h));
+        for i in 0..x.len() {
+            if self.pinned[i] {
+                x4[i] = x3[i];
+            }
+        }
+        self.move_pins(&mut x4, &mut v4, t2, t4);
+        let (f4, sticks) = self.forces_and_sticks(&x4, &v4, t4, h);
         let a4 = accel(f4);
         let two = R::of(2.0);
         let n = x.len();
@@ -268,8 +356,8 @@ impl<R: Real> ReferenceSimulator<R> {
         let mut v_new = Vec::with_capacity(n);
         for i in 0..n {
             if self.pinned[i] {
-                x_new.push(x[i]);
-                v_new.push(Vec3::zero());
+                x_new.push(x4[i]);
+                v_new.push(v4[i]);
             } else {
                 let xi = x[i] + (v[i] + v2[i] * two + v3[i] * two + v4[i]) * sixth;
                 let vi = v[i] + (a1[i] + a2[i] * two + a3[i] * two + a4[i]) * sixth;
@@ -284,23 +372,27 @@ impl<R: Real> ReferenceSimulator<R> {
         }
         self.positions = x_new;
         self.velocities = v_new;
+        self.clock = t4;
     }
 
-    /// XPBD (see [`Integrator::Xpbd`] and [`crate::constraints`]): predict with gravity and
-    /// drag, then [`XPBD_ITERATIONS`] times project every spring (colour by colour, in the order
+    /// XPBD (see [`Integrator::Xpbd`] and [`crate::constraints`]): predict with gravity, drag and
+    /// wind, then [`XPBD_ITERATIONS`] times project every spring (colour by colour, in the order
     /// of [`crate::coloring`], so exactly what the GPU's one-dispatch-per-colour computes) and
-    /// every sphere (swept), apply friction to the contacts' displacements, and derive the
-    /// velocities `(x' − x)/Δt`.
+    /// every sphere (swept, where it is at the substep's end), apply friction to the contacts'
+    /// displacements (relative to a moving sphere), and derive the velocities `(x' − x)/Δt`.
     fn xpbd_substep(&mut self) {
         let p = &self.params;
         let (h, m) = (p.dt, p.mass);
         let w = R::one() / m;
         let effects = self.scene.effects;
+        let (t, t1) = (self.clock, self.clock + h);
         let x0 = self.positions.clone();
+        let ctx = self.context(&x0, &self.velocities, t);
+        let (pin_step, pin_velocity) = p.pin_step(t, t1, self.moving_pins());
         let mut x = Vec::with_capacity(x0.len());
         for (i, &xi) in x0.iter().enumerate() {
             if self.pinned[i] {
-                x.push(xi);
+                x.push(xi + pin_step);
                 continue;
             }
             let mut v = self.velocities[i];
@@ -310,9 +402,23 @@ impl<R: Real> ReferenceSimulator<R> {
             if effects.contains(Effect::AirDrag) {
                 v += air_drag_force(m, p.air_drag, v) * (h / m);
             }
+            if effects.contains(Effect::Wind) {
+                v += ctx.wind_force(i, v) * (h / m);
+            }
             x.push(xi + v * h);
         }
         let inverse_mass = |i: usize| if self.pinned[i] { R::zero() } else { w };
+        let moving = self.moving_spheres();
+        // Each sphere where it ends the substep, and how far it moved during it.
+        let spheres: Vec<(Vec3<R>, Vec3<R>)> = p
+            .spheres
+            .iter()
+            .map(|s| {
+                let (start, _) = s.at(t, moving);
+                let (end, _) = s.at(t1, moving);
+                (end, end - start)
+            })
+            .collect();
         let mut lambda = vec![R::zero(); self.constraints.len()];
         let mut normal_correction = vec![R::zero(); x.len()];
         for _ in 0..XPBD_ITERATIONS {
@@ -338,8 +444,9 @@ impl<R: Real> ReferenceSimulator<R> {
                 if self.pinned[i] {
                     continue;
                 }
-                for s in &p.spheres {
-                    normal_correction[i] = normal_correction[i] + project_sphere_swept(xi, x0[i], s.center, s.radius);
+                for (s, &(center, moved)) in p.spheres.iter().zip(&spheres) {
+                    normal_correction[i] =
+                        normal_correction[i] + project_sphere_swept(xi, x0[i] + moved, center, s.radius);
                 }
             }
         }
@@ -348,8 +455,8 @@ impl<R: Real> ReferenceSimulator<R> {
                 if self.pinned[i] || normal_correction[i] <= R::zero() {
                     continue;
                 }
-                for s in &p.spheres {
-                    *xi = contact_friction(*xi, x0[i], s.center, s.radius, s.friction, normal_correction[i]);
+                for (s, &(center, moved)) in p.spheres.iter().zip(&spheres) {
+                    *xi = contact_friction(*xi, x0[i] + moved, center, s.radius, s.friction, normal_correction[i]);
                 }
             }
         }
@@ -358,51 +465,57 @@ impl<R: Real> ReferenceSimulator<R> {
             .iter()
             .zip(&x0)
             .zip(&self.pinned)
-            .map(|((a, b), &pinned)| if pinned { Vec3::zero() } else { (*a - *b) * inv_h })
+            .map(|((a, b), &pinned)| if pinned { pin_velocity } else { (*a - *b) * inv_h })
             .collect();
         self.positions = x;
         self.velocities = v;
+        self.clock = t1;
     }
 
     /// The brief's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).
     fn euler_substep(&mut self) {
-        let (x, v) = (&self.positions, &self.velocities);
+        let (t, t1) = (self.clock, self.clock + self.params.dt);
+        let (pin_step, pin_velocity) = self.params.pin_step(t, t1, self.moving_pins());
         let ctx = StepContext {
             params: &self.params,
             effects: self.scene.effects,
             first: &self.first,
             ends: &self.ends,
-            x,
-            v,
+            x: &self.positions,
+            v: &self.velocities,
+            time: t,
         };
-        let pinned = &self.pinned;
+        let (x, pinned) = (&self.positions, &self.pinned);
         self.next_positions
             .par_iter_mut()
             .zip(self.next_velocities.par_iter_mut())
             .enumerate()
             .with_min_len(PARALLEL_CHUNK)
             .for_each(|(i, (x_new, v_new))| {
-                (*x_new, *v_new) = if pinned[i] { (x[i], Vec3::zero()) } else { ctx.vertex_update(i) };
+                (*x_new, *v_new) = if pinned[i] { (x[i] + pin_step, pin_velocity) } else { ctx.vertex_update(i) };
             });
         std::mem::swap(&mut self.positions, &mut self.next_positions);
         std::mem::swap(&mut self.velocities, &mut self.next_velocities);
+        self.clock = t1;
     }
 
     /// Deepest penetration of any vertex into any sphere right now, m (0 when none).
     pub fn deepest_penetration(&self) -> R {
-        let spheres = &self.params.spheres;
+        let moving = self.moving_spheres();
+        let spheres: Vec<(Vec3<R>, R)> =
+            self.params.spheres.iter().map(|s| (s.at(self.clock, moving).0, s.radius)).collect();
         if spheres.is_empty() {
             return R::zero();
         }
         self.positions
             .par_iter()
             .with_min_len(PARALLEL_CHUNK)
-            .map(|&x| spheres.iter().map(|s| s.radius - (x - s.center).length()).fold(R::zero(), R::max))
+            .map(|&x| spheres.iter().map(|&(c, r)| r - (x - c).length()).fold(R::zero(), R::max))
             .reduce(R::zero, R::max)
     }
 }
 
-/// Read-only data of one substep.
+/// Read-only data of one force evaluation.
 struct StepContext<'a, R: Real> {
     params: &'a Params<R>,
     effects: crate::effects::EffectSet,
@@ -410,6 +523,8 @@ struct StepContext<'a, R: Real> {
     ends: &'a [End<R>],
     x: &'a [Vec3<R>],
     v: &'a [Vec3<R>],
+    /// Time of the state `(x, v)`, s.
+    time: R,
 }
 
 impl<R: Real> StepContext<'_, R> {
@@ -420,7 +535,15 @@ impl<R: Real> StepContext<'_, R> {
         integrate(self.x[i], self.v[i], self.vertex_force(i, p.dt), p.mass, p.dt)
     }
 
-    /// The resultant force on free vertex `i`, N: gravity, springs, drag, then contact and
+    /// The wind on vertex `i` moving at `v`, N (the `Wind` effect).
+    fn wind_force(&self, i: usize, v: Vec3<R>) -> Vec3<R> {
+        let p = self.params;
+        let normal = grid_normal(self.x, i, p.nx, p.ny);
+        let wind = wind_velocity(p.wind, p.gust_amplitude, p.gust_omega, self.time);
+        wind_force(normal, v, wind, p.wind_coefficient_area)
+    }
+
+    /// The resultant force on free vertex `i`, N: gravity, springs, drag, wind, then contact and
     /// friction (computed from the others). `friction_dt` is the step the friction's stopping
     /// term refers to.
     fn vertex_force(&self, i: usize, friction_dt: R) -> Vec3<R> {
@@ -444,16 +567,23 @@ impl<R: Real> StepContext<'_, R> {
         if self.effects.contains(Effect::AirDrag) {
             force += air_drag_force(p.mass, p.air_drag, v);
         }
+        if self.effects.contains(Effect::Wind) {
+            force += self.wind_force(i, v);
+        }
         // Contact and friction: R_o, the resultant of the other forces, is the force so far.
+        // Against a moving sphere they act on the velocity relative to it.
         let other_forces = force;
+        let moving = self.effects.contains(Effect::MovingSpheres);
         let mut stuck = None;
         for s in &p.spheres {
-            if let Some(contact) = contact_force(x, v, s.center, s.radius, s.stiffness, s.damping) {
+            let (center, sphere_velocity) = s.at(self.time, moving);
+            let v_rel = v - sphere_velocity;
+            if let Some(contact) = contact_force(x, v_rel, center, s.radius, s.stiffness, s.damping) {
                 force += contact.force;
                 if self.effects.contains(Effect::Friction) {
-                    force += friction_force(other_forces, v, contact.normal, p.mass, friction_dt, s.friction);
+                    force += friction_force(other_forces, v_rel, contact.normal, p.mass, friction_dt, s.friction);
                     if stuck.is_none()
-                        && friction_holds(other_forces, v, contact.normal, p.mass, friction_dt, s.friction)
+                        && friction_holds(other_forces, v_rel, contact.normal, p.mass, friction_dt, s.friction)
                     {
                         stuck = Some(contact.normal);
                     }
@@ -524,6 +654,7 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
         self.positions = state.positions.iter().map(|p| Vec3::from_f32(*p)).collect();
         self.velocities = state.velocities.iter().map(|v| Vec3::from_f32(*v)).collect();
         self.time_s = state.time_s;
+        self.clock = R::of(state.time_s as f32 as f64);
         Ok(())
     }
 

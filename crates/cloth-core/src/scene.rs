@@ -38,6 +38,8 @@ pub struct Scene {
     pub gravity: [f64; 3],
     /// Air-drag rate `γ`, 1/s, for the `AirDrag` effect: `F = -m γ v`. Default 0.5.
     pub air_drag: f64,
+    /// The wind of the `Wind` effect. Default: still air.
+    pub wind: WindSpec,
     /// Time stepping: frame length, substeps per frame, run length.
     pub time: TimeSpec,
     /// Time integrator. Default `SemiImplicitEuler` (the brief's); `VelocityVerlet`,
@@ -57,6 +59,7 @@ impl Default for Scene {
             spheres: vec![SphereSpec::default()],
             gravity: [0.0, -9.81, 0.0],
             air_drag: 0.5,
+            wind: WindSpec::default(),
             time: TimeSpec::default(),
             integrator: crate::integrator::Integrator::default(),
             effects: EffectSet::default(),
@@ -84,6 +87,9 @@ pub struct ClothSpec {
     pub pins: Vec<Pin>,
     /// Velocity every free vertex starts with, m/s. Default `(0, 0, 0)`.
     pub initial_velocity: [f64; 3],
+    /// How the pins move, for the `MovingPins` effect (every pin follows the same motion from
+    /// where it started). Default: no motion.
+    pub pin_motion: Motion,
 }
 
 impl Default for ClothSpec {
@@ -96,6 +102,7 @@ impl Default for ClothSpec {
             mass: Mass::Total(0.5),
             pins: Vec::new(),
             initial_velocity: [0.0; 3],
+            pin_motion: Motion::default(),
         }
     }
 }
@@ -212,11 +219,70 @@ pub struct SphereSpec {
     pub friction: f64,
     /// Damping of the normal approach velocity while in contact, N·s/m. Default 0.2.
     pub damping: f64,
+    /// How the sphere moves, for the `MovingSpheres` effect (from `center`). Default: no motion.
+    pub motion: Motion,
 }
 
 impl Default for SphereSpec {
     fn default() -> Self {
-        Self { center: [0.0, 1.0, 0.0], radius: 0.5, stiffness: 1000.0, friction: 0.5, damping: 0.2 }
+        Self {
+            center: [0.0, 1.0, 0.0],
+            radius: 0.5,
+            stiffness: 1000.0,
+            friction: 0.5,
+            damping: 0.2,
+            motion: Motion::default(),
+        }
+    }
+}
+
+/// A prescribed motion from a start position: the displacement at time `t` (s) is
+/// `d(t) = velocity · t + amplitude · sin(2π frequency t)`, m, and the velocity
+/// `d'(t) = velocity + amplitude · 2π frequency · cos(2π frequency t)`, m/s.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Motion {
+    /// Steady velocity, m/s. Default `(0, 0, 0)`.
+    pub velocity: [f64; 3],
+    /// Amplitude of the oscillation, m. Default `(0, 0, 0)`.
+    pub amplitude: [f64; 3],
+    /// Frequency of the oscillation, Hz. Default 0.
+    pub frequency: f64,
+}
+
+impl Motion {
+    /// Angular frequency `2π f`, rad/s.
+    pub fn angular_frequency(&self) -> f64 {
+        2.0 * std::f64::consts::PI * self.frequency
+    }
+
+    /// Largest speed of the motion, m/s (`|velocity| + |amplitude| · 2π f`, a bound).
+    pub fn max_speed(&self) -> f64 {
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        norm(self.velocity) + norm(self.amplitude) * self.angular_frequency()
+    }
+}
+
+/// The wind of the `Wind` effect: air moving at `velocity · (1 + gust_amplitude · sin(2π t /
+/// gust_period))` pushes on each vertex along the cloth's normal `n`,
+/// `F = coefficient · A · ((w − v) · n) n`, with `A` the cloth's area per vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WindSpec {
+    /// Mean wind velocity, m/s. Default `(0, 0, 0)`.
+    pub velocity: [f64; 3],
+    /// Relative amplitude of the gusts (0: steady wind). Default 0.
+    pub gust_amplitude: f64,
+    /// Period of the gusts, s. Default 2.
+    pub gust_period: f64,
+    /// Pressure per unit normal speed and area, N·s/m³ (about ½ ρ C_d |w| for air, ρ = 1.2 kg/m³).
+    /// Default 1.
+    pub coefficient: f64,
+}
+
+impl Default for WindSpec {
+    fn default() -> Self {
+        Self { velocity: [0.0; 3], gust_amplitude: 0.0, gust_period: 2.0, coefficient: 1.0 }
     }
 }
 

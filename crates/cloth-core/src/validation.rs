@@ -56,6 +56,12 @@ impl Checker {
         ok
     }
 
+    fn motion(&mut self, field: &str, m: &crate::scene::Motion) {
+        self.vector(&format!("{field}.velocity"), m.velocity);
+        self.vector(&format!("{field}.amplitude"), m.amplitude);
+        self.non_negative(&format!("{field}.frequency"), m.frequency, "Hz");
+    }
+
     fn spring(&mut self, field: &str, s: &SpringSpec) {
         self.non_negative(&format!("{field}.stiffness"), s.stiffness, "N/m");
         self.non_negative(&format!("{field}.damping"), s.damping, "N·s/m");
@@ -136,7 +142,13 @@ impl Scene {
             c.non_negative(&f("stiffness"), s.stiffness, "N/m");
             c.non_negative(&f("friction"), s.friction, "(dimensionless)");
             c.non_negative(&f("damping"), s.damping, "N·s/m");
+            c.motion(&f("motion"), &s.motion);
         }
+        c.motion("cloth.pin_motion", &cloth.pin_motion);
+        c.vector("wind.velocity", self.wind.velocity);
+        c.non_negative("wind.gust_amplitude", self.wind.gust_amplitude, "(relative)");
+        c.positive("wind.gust_period", self.wind.gust_period, "s");
+        c.non_negative("wind.coefficient", self.wind.coefficient, "N·s/m³");
         c.vector("gravity", self.gravity);
         c.non_negative("air_drag", self.air_drag, "1/s");
         c.positive("time.frame_dt", self.time.frame_dt, "s");

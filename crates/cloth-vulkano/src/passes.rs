@@ -31,12 +31,12 @@ use crate::{BACKEND_NAME, STEP_SPIRV, XPBD_SPIRV};
 
 /// Invocations per workgroup (specialization constant [`WORKGROUP_SIZE_CONSTANT_ID`]).
 pub const WORKGROUP_SIZE: u32 = 64;
-/// Specialization-constant id of the workgroup size; ids `0..8` are the effects, in
+/// Specialization-constant id of the workgroup size; ids `0..` are the effects, in
 /// `cloth_core::Effect::ALL` order.
-pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 8;
+pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 100;
 /// Specialization-constant id of the pass a pipeline runs: `STAGE` in `cloth_step.comp` (0 Euler,
 /// 1 and 2 the Verlet halves), `XPBD_PASS` in `xpbd.comp`.
-pub const STAGE_CONSTANT_ID: u32 = 9;
+pub const STAGE_CONSTANT_ID: u32 = 101;
 /// Binding of XPBD's colour range, a dynamic uniform buffer.
 const COLOR_RANGE_BINDING: u32 = 10;
 

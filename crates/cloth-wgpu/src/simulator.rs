@@ -315,7 +315,9 @@ impl Simulator for WgpuSimulator {
         cloth_core::simulator::check_state_size(self.free.len(), state)?;
         let positions: Vec<[f32; 4]> =
             state.positions.iter().zip(&self.free).map(|(p, &w)| [p[0], p[1], p[2], w]).collect();
-        let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
+        // w: the state's time, which moving pins, moving spheres and gusts read on the GPU.
+        let time = state.time_s as f32;
+        let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], time]).collect();
         let queue = &self.context.queue;
         queue.write_buffer(&self.buffers.positions[self.current], 0, bytemuck::cast_slice(&positions));
         queue.write_buffer(&self.buffers.velocities[self.current], 0, bytemuck::cast_slice(&velocities));
