@@ -289,7 +289,7 @@ impl<R: Real> ReferenceSimulator<R> {
         let (step, velocity) = self.params.pin_step(from, to, self.moving_pins());
         for i in 0..x.len() {
             if self.pinned[i] {
-                x[i] = x[i] + step;
+                x[i] += step;
                 v[i] = velocity;
             }
         }
