@@ -180,6 +180,111 @@ fn xpbd_matches_the_reference(backend: &Backend) {
     assert!(c[1] > sphere.center[1], "XPBD drape rests above the sphere's centre");
 }
 
+/// The driven effects (a gusting wind, a swaying pole, a ball thrown through the flag:
+/// `scenes/flag.ron`) under every integrator: against the f32 CPU reference until the ball
+/// arrives (frame 22; it meets the flag between frames 22 and 26, where, as at a landing, which
+/// way the flag folds round it is decided by the last bits: at frame 26 the f32 and f64 XPBD
+/// runs were already 1 mm apart), then by outcome at frame 40: the ball went through the flag's
+/// plane pushing it, without NaN and no deeper than a tenth of its radius.
+fn driven_effects_match_the_reference(backend: &Backend) {
+    use cloth_core::Integrator;
+    let base = with_grid(scene("flag.ron"), [12, 8]);
+    for integrator in Integrator::ALL {
+        let mut scene = Scene { integrator, ..base.clone() };
+        if integrator == Integrator::Xpbd {
+            scene.time.substeps = Substeps::Fixed(10);
+        }
+        let frames = 22;
+        let Some(mut sim) = create(backend, &scene) else { return };
+        sim.advance(frames).unwrap();
+        let state = sim.read_state().unwrap();
+        assert_eq!(state.non_finite_count(), 0, "{integrator:?}");
+        let d = max_difference(&state, &reference_f32(&scene, frames));
+        let mut tolerance = if integrator == Integrator::Xpbd {
+            XPBD_ULP_PER_SUBSTEP_M * (frames * scene.substeps_per_frame()) as f32
+        } else {
+            F32_TOLERANCE_M
+        };
+        if backend.name == "cpu-f64" {
+            // Against the f32 reference both runs' roundings count (as F64_TOLERANCE_M says).
+            tolerance *= 2.0;
+        }
+        eprintln!("{}: flag {integrator:?}: max |x - x_f32| = {d:.3e} m (tolerance {tolerance:.1e})", backend.name);
+        assert!(d <= tolerance, "flag {integrator:?}: differs from the f32 reference by {d} m");
+        sim.advance(18).unwrap();
+        let state = sim.read_state().unwrap();
+        assert_eq!(state.non_finite_count(), 0, "{integrator:?}: NaN after the ball");
+        let radius = scene.spheres[0].radius;
+        let penetration = sim.diagnostics().unwrap().max_penetration_m;
+        assert!(penetration < 0.1 * radius, "{integrator:?}: the ball went {penetration} m into the flag");
+        let ball_z = -1.5 + 4.0 * state.time_s;
+        assert!(ball_z > 0.5, "the ball is past the flag's plane");
+        if integrator != Integrator::Xpbd {
+            assert!(penetration > 0.0, "{integrator:?}: the ball should have met the flag");
+        }
+    }
+}
+
+/// Each driven effect is real: the wind pushes a hanging cloth along its normal, moving pins
+/// drag the cloth along, a moving sphere pushes it.
+fn driven_effects_move_the_cloth(backend: &Backend) {
+    let mut base = with_grid(scene("hanging.ron"), [10, 10]);
+    base.time.substeps = Substeps::Fixed(20);
+    let still = {
+        let Some((state, _)) = run(backend, &base, 30) else { return };
+        state.centroid()
+    };
+    let mut windy = base.clone();
+    windy.effects = windy.effects.with(Effect::Wind);
+    windy.wind.velocity = [0.0, 0.0, 3.0];
+    let Some((state, _)) = run(backend, &windy, 30) else { return };
+    let pushed = state.centroid()[2] - still[2];
+    assert!(pushed > 0.05, "a 3 m/s wind along +z moved the cloth {pushed} m along z in 0.5 s");
+    let mut dragged = base.clone();
+    dragged.effects = dragged.effects.with(Effect::MovingPins);
+    dragged.cloth.pin_motion.velocity = [0.4, 0.0, 0.0];
+    let Some((state, _)) = run(backend, &dragged, 30) else { return };
+    let pin = (base.cloth.resolution[1] - 1) * base.cloth.resolution[0]; // top-left corner
+    let start = with_grid(scene("hanging.ron"), [10, 10]);
+    let x0 = cloth_core::grid::Grid::new(&start.cloth).positions[pin as usize][0];
+    let moved = state.positions[pin as usize][0] as f64 - x0;
+    assert!((moved - 0.2).abs() < 1e-4, "the pin moved {moved} m in 0.5 s at 0.4 m/s");
+    assert!(state.centroid()[0] - still[0] > 0.05, "the cloth follows its pins: {:?}", state.centroid());
+    let mut hit = base.clone();
+    hit.effects = hit.effects.with(Effect::SphereContact).with(Effect::MovingSpheres);
+    hit.spheres = vec![cloth_core::scene::SphereSpec {
+        center: [0.0, 1.2, -1.0],
+        radius: 0.2,
+        motion: cloth_core::scene::Motion { velocity: [0.0, 0.0, 3.0], ..Default::default() },
+        ..Default::default()
+    }];
+    let Some((state, _)) = run(backend, &hit, 30) else { return };
+    assert!(state.centroid()[2] - still[2] > 0.05, "the ball pushed the cloth: {:?}", state.centroid());
+}
+
+/// An absent effect gives exactly what the effect at zero strength gives: the wind with a zero
+/// coefficient, pins and spheres with a zero motion, air drag with a zero rate. (Exact on the
+/// CPU; on a GPU the two pipeline variants are compiled separately, so a compiler that fuses
+/// multiply-adds may round them differently: within the f32 tolerance there.)
+fn an_absent_effect_equals_zero_strength(backend: &Backend) {
+    use cloth_core::Integrator;
+    let mut base = with_grid(scene("hold.ron"), [8, 8]);
+    base.cloth.pins = vec![Pin::Corner(Corner::TopLeft)];
+    let tolerance = if backend.name.starts_with("cpu") { 0.0 } else { F32_TOLERANCE_M };
+    for integrator in Integrator::ALL {
+        let absent = Scene { integrator, ..base.clone() };
+        let mut zero = absent.clone();
+        zero.effects =
+            zero.effects.with(Effect::Wind).with(Effect::MovingPins).with(Effect::MovingSpheres).with(Effect::AirDrag);
+        zero.wind = cloth_core::scene::WindSpec { velocity: [2.0, 0.0, 1.0], coefficient: 0.0, ..Default::default() };
+        zero.air_drag = 0.0;
+        let Some((a, _)) = run(backend, &absent, 12) else { return };
+        let Some((b, _)) = run(backend, &zero, 12) else { return };
+        let d = max_difference(&a, &b);
+        assert!(d <= tolerance, "{integrator:?}: absent effects and zero strength differ by {d} m");
+    }
+}
+
 fn bit_exact_with_the_f32_reference(backend: &Backend) {
     let scene = with_grid(scene("drape.ron"), [7, 13]);
     let Some((state, _)) = run(backend, &scene, 12) else { return };
@@ -490,6 +595,9 @@ conformance! {
         short_horizon_matches_the_references,
         higher_order_integrators_match_the_reference_on_a_short_horizon,
         xpbd_matches_the_reference,
+        driven_effects_match_the_reference,
+        driven_effects_move_the_cloth,
+        an_absent_effect_equals_zero_strength,
         bit_exact_with_the_f32_reference,
         long_horizon_outcomes_agree,
         changing_the_grid_changes_the_vertex_count,
