@@ -72,7 +72,7 @@ void main() {
         if (EFFECT_GRAVITY) {
             force += gravity_force(mass, params.gravity.xyz);
         }
-        if (EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND) {
+        if (ANY_SPRINGS) {
             SpringRange range = spring_ranges[i];
             for (uint e = range.first; e < range.first + range.count; e++) {
                 SpringEnd end_ = spring_ends[e];
@@ -172,14 +172,17 @@ void main() {
     }
     positions_out[i] = vec4(x_new, p.w);
     // The deepest penetration is checked on the state that ends a substep, as on the CPU.
-    if (EFFECT_CONTACT && (STAGE == 0u || STAGE == 1u || STAGE == 6u)) {
-        float deepest = 0.0;
-        for (uint s = 0u; s < params.sphere_count; s++) {
-            vec3 offset = x_new - sphere_center(spheres[s], t_out);
-            deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
-        }
-        if (deepest > 0.0) {
-            atomicMax(max_penetration_bits, floatBitsToUint(deepest));
+    // (Nested ifs: a constant condition stays one branch, which a compiler removes whole.)
+    if (EFFECT_CONTACT) {
+        if (STAGE == 0u || STAGE == 1u || STAGE == 6u) {
+            float deepest = 0.0;
+            for (uint s = 0u; s < params.sphere_count; s++) {
+                vec3 offset = x_new - sphere_center(spheres[s], t_out);
+                deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+            }
+            if (deepest > 0.0) {
+                atomicMax(max_penetration_bits, floatBitsToUint(deepest));
+            }
         }
     }
 }

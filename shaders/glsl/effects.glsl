@@ -13,5 +13,7 @@ layout(constant_id = 7) const bool EFFECT_AIR_DRAG = false;
 layout(constant_id = 8) const bool EFFECT_WIND = false;
 layout(constant_id = 9) const bool EFFECT_MOVING_PINS = false;
 layout(constant_id = 10) const bool EFFECT_MOVING_SPHERES = false;
+// Any spring kind at all (a specialization-constant expression, so the branch on it is constant).
+#define ANY_SPRINGS (EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND)
 // local_size_x is the default; local_size_x_id makes it specializable (id 100).
 layout(local_size_x = 64, local_size_x_id = 100) in;

@@ -149,6 +149,9 @@ void predict(uint i) {
 }
 
 void project_color(uint t) {
+    if (!ANY_SPRINGS) {
+        return;
+    }
     if (t >= color.count) {
         return;
     }
@@ -197,13 +200,15 @@ void finish(uint i) {
     if (p.w != 0.0) {
         vec3 x0 = positions_in[i].xyz;
         float correction = normal_corrections[i];
-        if (EFFECT_FRICTION && correction > 0.0) {
-            for (uint s = 0u; s < params.sphere_count; s++) {
-                vec3 center = sphere_center(spheres[s], t_end);
-                vec3 x_start = x0 + (center - sphere_center(spheres[s], t));
-                x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
+        if (EFFECT_FRICTION) {
+            if (correction > 0.0) {
+                for (uint s = 0u; s < params.sphere_count; s++) {
+                    vec3 center = sphere_center(spheres[s], t_end);
+                    vec3 x_start = x0 + (center - sphere_center(spheres[s], t));
+                    x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
+                }
+                positions_out[i] = vec4(x, p.w);
             }
-            positions_out[i] = vec4(x, p.w);
         }
         v = (x - x0) * (1.0 / params.substep_dt);
     }
@@ -233,7 +238,9 @@ void main() {
     if (XPBD_PASS == 0u) {
         predict(t);
     } else if (XPBD_PASS == 2u) {
-        project_spheres(t);
+        if (EFFECT_CONTACT) {
+            project_spheres(t);
+        }
     } else {
         finish(t);
     }

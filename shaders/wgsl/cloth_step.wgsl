@@ -69,7 +69,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         if (EFFECT_GRAVITY) {
             force += gravity_force(mass, params.gravity.xyz);
         }
-        if (EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND) {
+        if (ANY_SPRINGS) {
             let range = spring_ranges[i];
             for (var e = range.first; e < range.first + range.count; e++) {
                 let end = spring_ends[e];
@@ -171,14 +171,17 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     }
     positions_out[i] = vec4<f32>(x_new, p.w);
     // The deepest penetration is checked on the state that ends a substep, as on the CPU.
-    if (EFFECT_CONTACT && (STAGE == 0u || STAGE == 1u || STAGE == 6u)) {
-        var deepest = 0.0;
-        for (var s = 0u; s < params.sphere_count; s++) {
-            let offset = x_new - sphere_center(spheres[s], t_out);
-            deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
-        }
-        if (deepest > 0.0) {
-            atomicMax(&max_penetration_bits, bitcast<u32>(deepest));
+    // (Nested ifs: a constant condition stays one branch, which a compiler removes whole.)
+    if (EFFECT_CONTACT) {
+        if (STAGE == 0u || STAGE == 1u || STAGE == 6u) {
+            var deepest = 0.0;
+            for (var s = 0u; s < params.sphere_count; s++) {
+                let offset = x_new - sphere_center(spheres[s], t_out);
+                deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+            }
+            if (deepest > 0.0) {
+                atomicMax(&max_penetration_bits, bitcast<u32>(deepest));
+            }
         }
     }
 }

@@ -21,6 +21,8 @@ override EFFECT_WIND: bool = false;
 override EFFECT_MOVING_PINS: bool = false;
 override EFFECT_MOVING_SPHERES: bool = false;
 override WORKGROUP_SIZE: u32 = 64u;
+// Any spring kind at all (one constant, so the branch on it is a constant too).
+override ANY_SPRINGS: bool = EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND;
 
 // cloth_core::layout::GpuSimParams (144 bytes).
 struct SimParams {

@@ -150,6 +150,9 @@ fn predict(i: u32) {
 }
 
 fn project_color(t: u32) {
+    if (!ANY_SPRINGS) {
+        return;
+    }
     if (t >= color.count) {
         return;
     }
@@ -202,13 +205,15 @@ fn finish(i: u32) {
     if (p.w != 0.0) {
         let x0 = positions_in[i].xyz;
         let correction = normal_corrections[i];
-        if (EFFECT_FRICTION && correction > 0.0) {
-            for (var s = 0u; s < params.sphere_count; s++) {
-                let center = sphere_center(spheres[s], t_end);
-                let x_start = x0 + (center - sphere_center(spheres[s], t));
-                x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
+        if (EFFECT_FRICTION) {
+            if (correction > 0.0) {
+                for (var s = 0u; s < params.sphere_count; s++) {
+                    let center = sphere_center(spheres[s], t_end);
+                    let x_start = x0 + (center - sphere_center(spheres[s], t));
+                    x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
+                }
+                positions_out[i] = vec4<f32>(x, p.w);
             }
-            positions_out[i] = vec4<f32>(x, p.w);
         }
         v = (x - x0) * (1.0 / params.substep_dt);
     }
@@ -238,7 +243,11 @@ fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     }
     switch XPBD_PASS {
         case 0u: { predict(t); }
-        case 2u: { project_spheres(t); }
+        case 2u: {
+            if (EFFECT_CONTACT) {
+                project_spheres(t);
+            }
+        }
         default: { finish(t); }
     }
 }
