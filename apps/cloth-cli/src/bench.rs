@@ -1,4 +1,5 @@
-//! `cloth bench`: cost per frame of each backend on the drape scene at several grid sizes.
+//! `cloth bench`: cost per frame of each backend on the drape scene at several grid sizes, and
+//! with `--effects`, what each effect of a scene costs (the bare cloth, then each effect added).
 //!
 //! A benchmark, not a test: it prints figures and writes a CSV, and asserts nothing about speed.
 
@@ -6,7 +7,9 @@ use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use cloth_backends::effect_cost;
 use cloth_core::{Scene, SimError, Substeps};
+use indicatif::{ProgressBar, ProgressStyle};
 
 use cloth_backends as backends;
 
@@ -31,7 +34,18 @@ pub struct BenchArgs {
     /// Also write the rows to this CSV file.
     #[arg(long)]
     csv: Option<std::path::PathBuf>,
+    /// Instead, print what each effect costs: the bare cloth, then each effect of the scene
+    /// added in turn (ms per frame per backend, at each of `--grids`, `--substeps` ignored:
+    /// the scene's own substeps).
+    #[arg(long)]
+    effects: bool,
+    /// The scene of `--effects` (default: scenes/flag.ron, which has every effect).
+    #[arg(long, requires = "effects")]
+    scene: Option<std::path::PathBuf>,
 }
+
+/// The default scene of `--effects`: every effect at once (a copy of `scenes/flag.ron`).
+const FLAG_SCENE: &str = include_str!("../../../scenes/flag.ron");
 
 struct Row {
     backend: String,
@@ -54,6 +68,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
             .map(|n| all.iter().find(|b| b.name == n).with_context(|| format!("unknown backend '{n}'")))
             .collect::<Result<_>>()?
     };
+    if args.effects {
+        return effects(&args, &chosen);
+    }
     println!(
         "{:<8} {:>6} {:>9} {:>12} {:>16} {:>12} {:>11}  adapter",
         "backend", "grid", "substeps", "ms/frame", "vertex-substep/s", "submits/frm", "waits/frm"
@@ -139,6 +156,84 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 r.host_waits_per_frame
             )?;
         }
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// `cloth bench --effects`: the per-effect breakdown of a scene on each backend and grid.
+fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
+    let base = match &args.scene {
+        Some(path) => Scene::load(path).with_context(|| format!("cannot use scene {}", path.display()))?,
+        None => Scene::from_ron_str(FLAG_SCENE).context("the built-in flag scene")?,
+    };
+    let mut csv = String::from("backend,adapter,grid,substeps,row,effects,ms_per_frame,added_ms,timer\n");
+    for backend in chosen {
+        for &n in &args.grids {
+            let mut scene = base.clone();
+            // Square cells: the longer side gets `n` vertices.
+            let [w, h] = scene.cloth.size;
+            scene.cloth.resolution = if w >= h {
+                [n, ((n as f64 * h / w).round() as u32).max(2)]
+            } else {
+                [((n as f64 * w / h).round() as u32).max(2), n]
+            };
+            scene.validate().with_context(|| format!("the scene '{}' at grid {n}", scene.name))?;
+            let [nx, ny] = scene.cloth.resolution;
+            let bar = ProgressBar::new(effect_cost::steps(&scene).len() as u64).with_style(
+                ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            bar.set_message(format!("{} {nx}x{ny}", backend.name));
+            let breakdown =
+                match effect_cost::measure(&scene, backend, args.adapter.as_deref(), args.frames, |done, _| {
+                    bar.set_position(done as u64)
+                }) {
+                    Ok(rows) => rows,
+                    Err(SimError::Unavailable { reason, .. }) => {
+                        bar.finish_and_clear();
+                        println!("{:<8} skipped: {reason}", backend.name);
+                        break;
+                    }
+                    Err(e) => {
+                        bar.finish_and_clear();
+                        println!("{:<8} {nx}x{ny} refused: {e}", backend.name);
+                        continue;
+                    }
+                };
+            bar.finish_and_clear();
+            let (adapter, substeps, timer, rows) =
+                (&breakdown.adapter, breakdown.substeps, breakdown.timer(), &breakdown.rows);
+            println!(
+                "\n{} on {adapter}: scene '{}', {nx}x{ny} vertices, {substeps} substeps per frame, {} frames, {timer}",
+                backend.name, scene.name, args.frames
+            );
+            println!("  {:<22} {:>10} {:>10}  share of the whole", "row", "ms/frame", "added ms");
+            let whole = rows.last().map_or(1.0, |r| r.ms_per_frame).max(f64::MIN_POSITIVE);
+            for r in rows {
+                let share = if r.added.is_some() { r.added_ms / whole } else { r.ms_per_frame / whole };
+                let bar = "#".repeat((share.max(0.0) * 40.0).round() as usize);
+                println!(
+                    "  {:<22} {:>10.3} {:>+10.3}  {bar} {:.0}%",
+                    r.label(),
+                    r.ms_per_frame,
+                    r.added_ms,
+                    share * 100.0
+                );
+                csv += &format!(
+                    "{},\"{}\",{nx}x{ny},{substeps},{},{},{:.6},{:.6},{timer}\n",
+                    backend.name,
+                    adapter.replace('"', "'"),
+                    r.label(),
+                    r.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
+                    r.ms_per_frame,
+                    r.added_ms
+                );
+            }
+        }
+    }
+    if let Some(path) = &args.csv {
+        std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -89,6 +89,7 @@ pub struct Runtime {
     confirm_quit: bool,
     allow_close: bool,
     study: panels::study::StudyPanel,
+    effect_costs: panels::effect_costs::EffectCostsPanel,
 }
 
 /// The inspector.
@@ -172,6 +173,7 @@ impl InspectorApp {
                 confirm_quit: false,
                 allow_close: false,
                 study: Default::default(),
+                effect_costs: Default::default(),
             },
             state,
         };
@@ -594,6 +596,11 @@ impl eframe::App for InspectorApp {
                     panels::stats::show(ui, &self.runtime.stats, sim.scene());
                 }
                 let backend = self.runtime.sim.as_ref().map(Sim::backend_name).unwrap_or("cpu");
+                if let Some(sim) = self.runtime.sim.as_ref() {
+                    egui::CollapsingHeader::new("Cost of each effect")
+                        .default_open(true)
+                        .show(ui, |ui| self.runtime.effect_costs.show(ui, sim.scene(), backend));
+                }
                 egui::CollapsingHeader::new("Accuracy study")
                     .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene, backend));
             });

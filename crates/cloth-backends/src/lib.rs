@@ -5,6 +5,8 @@
 
 #![warn(missing_docs)]
 
+pub mod effect_cost;
+
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
 
 /// Creates a simulator for a scene, on the adapter whose name contains the given text if any.

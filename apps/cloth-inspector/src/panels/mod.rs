@@ -4,6 +4,7 @@
 pub mod backend;
 pub mod cloth;
 pub mod contact;
+pub mod effect_costs;
 pub mod effects;
 pub mod scene;
 pub mod springs;
