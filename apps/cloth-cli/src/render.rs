@@ -124,14 +124,16 @@ pub fn render(model: &ClothModel, state: &ClothState, width: usize, height: usiz
         }
     }
     let light = norm(LIGHT);
-    for s in &scene.spheres {
+    for (index, s) in scene.spheres.iter().enumerate() {
+        // A moving sphere is drawn where it is at the state's time.
+        let center = scene.sphere_center_at(index, state.time_s);
         // Drawn slightly smaller: the cloth rests on its vertices, and flat triangles between
         // them would otherwise be pierced by the curved surface.
         let radius = 0.98 * s.radius;
         for py in 0..height {
             for px in 0..width {
                 let d = cam.ray(px as f64 + 0.5, py as f64 + 0.5);
-                let oc = sub(cam.eye, s.center);
+                let oc = sub(cam.eye, center);
                 let b = dot(oc, d);
                 let disc = b * b - (dot(oc, oc) - radius * radius);
                 if disc < 0.0 {
@@ -141,7 +143,7 @@ pub fn render(model: &ClothModel, state: &ClothState, width: usize, height: usiz
                 let i = py * width + px;
                 if t > 0.0 && t < depth[i] {
                     let hit = [cam.eye[0] + t * d[0], cam.eye[1] + t * d[1], cam.eye[2] + t * d[2]];
-                    let n = norm(sub(hit, s.center));
+                    let n = norm(sub(hit, center));
                     depth[i] = t * dot(d, cam.forward);
                     color[i] = shade([0.55, 0.6, 0.68], dot(n, light));
                 }

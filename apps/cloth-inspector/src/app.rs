@@ -83,6 +83,8 @@ pub struct Runtime {
     frame_accumulator: f32,
     frames_since_sample: u32,
     frames_run: u32,
+    /// Simulated time of the running cloth, s: counted per frame, set from every state read back.
+    sim_time_s: f64,
     screenshot: Option<(u32, PathBuf)>,
     screenshot_done: Arc<Mutex<Option<Result<(), String>>>>,
     screenshot_requested: bool,
@@ -167,6 +169,7 @@ impl InspectorApp {
                 frame_accumulator: 0.0,
                 frames_since_sample: 0,
                 frames_run: 0,
+                sim_time_s: 0.0,
                 screenshot: options.screenshot,
                 screenshot_done: Arc::new(Mutex::new(None)),
                 screenshot_requested: false,
@@ -215,6 +218,7 @@ impl InspectorApp {
             Ok(mut sim) => {
                 self.runtime.model = ClothModel::new(sim.scene());
                 self.runtime.host_state = sim.get().read_state().ok();
+                self.runtime.sim_time_s = self.runtime.host_state.as_ref().map_or(0.0, |s| s.time_s);
                 self.runtime.sim = Some(sim);
             }
             Err(e) => self.runtime.notices.push(format!("cannot start any backend: {e}")),
@@ -236,6 +240,9 @@ impl InspectorApp {
                     return;
                 }
                 self.state.backend = name.to_string();
+                if let Some(s) = &state {
+                    self.runtime.sim_time_s = s.time_s;
+                }
                 self.runtime.host_state = state;
                 self.runtime.sim = Some(sim);
             }
@@ -282,6 +289,10 @@ impl InspectorApp {
                     self.rebuild_for_edit();
                 } else if let Err(e) = sim.get().update_parameters(&self.state.scene) {
                     self.runtime.notices.push(format!("could not apply the change: {e}"));
+                } else {
+                    // The springs and grid are unchanged; the drawing and the energy read the
+                    // new parameters (a moved sphere is drawn where it now is).
+                    self.runtime.model.scene = self.state.scene.clone();
                 }
             }
         }
@@ -302,6 +313,7 @@ impl InspectorApp {
                 self.runtime.rejected = None;
                 self.runtime.model = ClothModel::new(sim.scene());
                 self.runtime.host_state = sim.get().read_state().ok();
+                self.runtime.sim_time_s = self.runtime.host_state.as_ref().map_or(0.0, |s| s.time_s);
                 self.runtime.sim = Some(sim);
                 self.runtime.stats.clear();
             }
@@ -368,10 +380,11 @@ impl InspectorApp {
                             .into(),
                     );
                 }
+                self.runtime.sim_time_s = state.time_s;
                 self.runtime.host_state = Some(state);
                 self.runtime.frames_since_sample = 0;
             }
-            Ok(None) => {}
+            Ok(None) => self.runtime.sim_time_s += frames as f64 * sim.scene().time.frame_dt,
             Err(e) => {
                 let failed = sim.get().backend_name();
                 self.runtime
@@ -382,6 +395,7 @@ impl InspectorApp {
                     Ok(mut cpu) => {
                         if let Some(s) = &last {
                             let _ = cpu.write_state(s);
+                            self.runtime.sim_time_s = s.time_s;
                         }
                         self.runtime.sim = Some(Sim::Boxed(Box::new(cpu)));
                         self.state.backend = "cpu".into();
@@ -441,6 +455,7 @@ impl InspectorApp {
             color_mode: self.state.color_mode,
             wireframe: self.state.wireframe,
             source,
+            time_s: self.runtime.sim_time_s,
         };
         let texture = renderer.render(rs, size, &self.runtime.model, &inputs);
         ui.painter().image(

@@ -88,6 +88,8 @@ pub struct ViewInputs<'a> {
     pub color_mode: ColorMode,
     pub wireframe: bool,
     pub source: Source<'a>,
+    /// Simulated time of the drawn state, s: where moving spheres and pins are drawn.
+    pub time_s: f64,
 }
 
 struct Target {
@@ -445,23 +447,35 @@ impl ViewRenderer {
             strain_scale: 0.05,
         };
         queue.write_buffer(&self.cloth_info, 0, bytemuck::bytes_of(&info));
-        let spheres: Vec<GpuSphere> = scene.spheres.iter().take(16).map(GpuSphere::from_spec).collect();
+        // Moving spheres and pins are drawn where they are at the state's time.
+        let centers: Vec<[f64; 3]> =
+            (0..scene.spheres.len()).map(|i| scene.sphere_center_at(i, inputs.time_s)).collect();
+        let spheres: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .zip(&centers)
+            .take(16)
+            .map(|(s, c)| GpuSphere { center: c.map(|x| x as f32), ..GpuSphere::from_spec(s) })
+            .collect();
         if !spheres.is_empty() {
             queue.write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
         }
         let mut instances: Vec<InstanceData> = scene
             .spheres
             .iter()
-            .map(|s| InstanceData {
+            .zip(&centers)
+            .map(|(s, c)| InstanceData {
                 // Slightly smaller than the collider: the cloth rests on its vertices, and the flat
                 // triangles between them would otherwise be pierced by the curved surface.
-                center_radius: [s.center[0] as f32, s.center[1] as f32, s.center[2] as f32, 0.985 * s.radius as f32],
+                center_radius: [c[0] as f32, c[1] as f32, c[2] as f32, 0.985 * s.radius as f32],
                 color: [0.55, 0.6, 0.68, 1.0],
             })
             .collect();
         let marker = 0.25 * (info.rest_du.min(info.rest_dv)).max(0.004);
+        let d = scene.pin_displacement_at(inputs.time_s);
         for (i, _) in model.grid.pinned.iter().enumerate().filter(|(_, p)| **p) {
             let p = model.grid.positions[i];
+            let p = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
             instances.push(InstanceData {
                 center_radius: [p[0] as f32, p[1] as f32, p[2] as f32, marker],
                 color: [0.9, 0.1, 0.1, 1.0],

@@ -17,7 +17,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::effects::EffectSet;
+use crate::effects::{Effect, EffectSet};
 use crate::error::SceneError;
 
 /// A complete simulation set-up.
@@ -361,6 +361,27 @@ impl Scene {
             Mass::PerVertex(m) => m,
             Mass::Total(total) => total / self.vertex_count().max(1) as f64,
         }
+    }
+
+    /// Where sphere `index` is at simulated time `t_s` (s), m: `center + d(t)` of its
+    /// [`Motion`] when the scene has [`Effect::MovingSpheres`], else `center`. What renderers
+    /// draw; the solvers evaluate the same motion in their own precision.
+    pub fn sphere_center_at(&self, index: usize, t_s: f64) -> [f64; 3] {
+        let sphere = &self.spheres[index];
+        if !self.effects.contains(Effect::MovingSpheres) {
+            return sphere.center;
+        }
+        let d = crate::motion::MotionOf::<f64>::of(&sphere.motion).displacement(t_s).to_f64();
+        [sphere.center[0] + d[0], sphere.center[1] + d[1], sphere.center[2] + d[2]]
+    }
+
+    /// How far every pin has moved from its start at simulated time `t_s` (s), m: `d(t)` of
+    /// `cloth.pin_motion` when the scene has [`Effect::MovingPins`], else zero.
+    pub fn pin_displacement_at(&self, t_s: f64) -> [f64; 3] {
+        if !self.effects.contains(Effect::MovingPins) {
+            return [0.0; 3];
+        }
+        crate::motion::MotionOf::<f64>::of(&self.cloth.pin_motion).displacement(t_s).to_f64()
     }
 
     /// Length of one substep, s (for `Auto`, the one [`crate::stability`] picks).
