@@ -510,7 +510,15 @@ impl InspectorApp {
         let Some((frames, path)) = self.runtime.screenshot.clone() else { return };
         if let Some(result) = self.runtime.screenshot_done.lock().ok().and_then(|mut r| r.take()) {
             match result {
-                Ok(()) => eprintln!("wrote {}", path.display()),
+                Ok(()) => {
+                    // What a headless run needs to know: where it ran, and anything it was told.
+                    let adapter = self.runtime.sim.as_mut().map(|s| s.get().adapter_name()).unwrap_or_default();
+                    eprintln!("ran on the {} backend: {adapter}", self.state.backend);
+                    for notice in &self.runtime.notices {
+                        eprintln!("notice: {notice}");
+                    }
+                    eprintln!("wrote {}", path.display());
+                }
                 Err(e) => eprintln!("screenshot failed: {e}"),
             }
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);

@@ -66,8 +66,30 @@ fn main() -> Result<()> {
             .with_inner_size([1280.0, 800.0])
             .with_title("Cloth inspector"),
         persist_window: options.screenshot.is_none(),
+        wgpu_options: wgpu_options(),
         ..Default::default()
     };
     eframe::run_native("cloth-inspector", native, Box::new(move |cc| Ok(Box::new(app::InspectorApp::new(cc, options)))))
         .map_err(|e| anyhow!("the inspector window failed: {e}"))
+}
+
+/// eframe's device, opened with what the wgpu simulator needs (it runs on the same device and
+/// draws from its buffers without a copy) as well as what the drawing needs.
+fn wgpu_options() -> eframe::egui_wgpu::WgpuConfiguration {
+    use eframe::egui_wgpu::{WgpuConfiguration, WgpuSetup, WgpuSetupCreateNew};
+    let mut setup = WgpuSetupCreateNew::without_display_handle();
+    let drawing = setup.device_descriptor.clone();
+    setup.device_descriptor = std::sync::Arc::new(move |adapter| {
+        let base = drawing(adapter);
+        let (features, limits) = cloth_wgpu::device_requirements(adapter);
+        eframe::wgpu::DeviceDescriptor {
+            required_features: base.required_features | features,
+            required_limits: eframe::wgpu::Limits {
+                max_texture_dimension_2d: base.required_limits.max_texture_dimension_2d,
+                ..limits
+            },
+            ..base
+        }
+    });
+    WgpuConfiguration { wgpu_setup: WgpuSetup::CreateNew(setup), ..Default::default() }
 }

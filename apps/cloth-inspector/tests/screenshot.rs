@@ -44,15 +44,20 @@ fn screenshot_shows_the_cloth_over_the_sphere_on_every_backend() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     for backend in ["cpu", "wgpu", "vulkano"] {
         let out = std::env::temp_dir().join(format!("cloth-inspector-{backend}-{}.png", std::process::id()));
-        let status = Command::new("xvfb-run")
+        let output = Command::new("xvfb-run")
             .args(["-a", "-s", "-screen 0 1280x800x24"])
             .arg(env!("CARGO_BIN_EXE_cloth-inspector"))
             .args(["--scene", "scenes/hold.ron", "--backend", backend, "--frames", "90", "--screenshot"])
             .arg(&out)
             .current_dir(&root)
-            .status()
+            .output()
             .expect("xvfb-run starts");
-        assert!(status.success(), "{backend}: the inspector exited with {status}");
+        let log = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{backend}: the inspector exited with {}:\n{log}", output.status);
+        // It ran where it was asked to, without falling back (the wgpu backend shares eframe's
+        // device, which must be opened with the limits the simulator needs).
+        assert!(log.contains(&format!("ran on the {backend} backend")), "{backend}: fell back:\n{log}");
+        assert!(!log.contains("notice:"), "{backend}: the inspector reported a problem:\n{log}");
         let (w, h, pixels) = decode(&out);
         assert!(w >= 640 && h >= 400, "{backend}: {w}x{h}");
         let total = (w * h) as usize;

@@ -87,6 +87,24 @@ fn no_adapter_reason() -> String {
         .into()
 }
 
+/// The features and limits the simulator asks of a device on `adapter`: the largest storage
+/// buffers and workgroup grids it offers, every storage buffer per stage it offers (the kernels
+/// bind 9; WebGPU's default is 8), and timestamp queries where there are any. A host that opens the
+/// device itself (the inspector shares eframe's) requests these so the simulator can run on it.
+pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Limits) {
+    let offered = adapter.limits();
+    let limits = wgpu::Limits {
+        max_storage_buffer_binding_size: offered.max_storage_buffer_binding_size,
+        max_buffer_size: offered.max_buffer_size,
+        max_storage_buffers_per_shader_stage: offered.max_storage_buffers_per_shader_stage.max(8),
+        max_compute_workgroups_per_dimension: offered.max_compute_workgroups_per_dimension,
+        max_compute_invocations_per_workgroup: offered.max_compute_invocations_per_workgroup,
+        max_compute_workgroup_size_x: offered.max_compute_workgroup_size_x,
+        ..wgpu::Limits::default()
+    };
+    (adapter.features() & wgpu::Features::TIMESTAMP_QUERY, limits)
+}
+
 impl GpuContext {
     /// Opens a device on the chosen adapter, with the largest storage buffers it offers.
     ///
@@ -107,17 +125,7 @@ impl GpuContext {
                     })?
             }
         };
-        let offered = adapter.limits();
-        let limits = wgpu::Limits {
-            max_storage_buffer_binding_size: offered.max_storage_buffer_binding_size,
-            max_buffer_size: offered.max_buffer_size,
-            max_storage_buffers_per_shader_stage: offered.max_storage_buffers_per_shader_stage.max(8),
-            max_compute_workgroups_per_dimension: offered.max_compute_workgroups_per_dimension,
-            max_compute_invocations_per_workgroup: offered.max_compute_invocations_per_workgroup,
-            max_compute_workgroup_size_x: offered.max_compute_workgroup_size_x,
-            ..wgpu::Limits::default()
-        };
-        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+        let (features, limits) = device_requirements(&adapter);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("cloth device"),
             required_features: features,

@@ -17,7 +17,7 @@ mod passes;
 mod simulator;
 mod timer;
 
-pub use context::{AdapterChoice, GpuContext, list_adapters};
+pub use context::{AdapterChoice, GpuContext, device_requirements, list_adapters};
 pub use simulator::WgpuSimulator;
 
 /// WGSL source of the force-based substep kernel (`shaders/wgsl/common.wgsl` followed by

@@ -1,10 +1,10 @@
-//! Contact panel: spheres (centre, radius, k_c, c_f, damping), contact and friction on/off.
+//! Contact panel: spheres (centre, radius, k_c, c_f, damping, motion), contact and friction on/off.
 
 use cloth_core::Effect;
 use cloth_core::scene::SphereSpec;
 use eframe::egui;
 
-use super::{PanelContext, problems_for, quantity, vector};
+use super::{PanelContext, motion, problems_for, quantity, vector};
 
 pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
     for (effect, label) in [(Effect::SphereContact, "sphere contact"), (Effect::Friction, "friction")] {
@@ -14,6 +14,7 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
         }
     }
     problems_for(ui, ctx.problems, "effects");
+    let moving = ctx.scene.effects.contains(Effect::MovingSpheres);
     let mut remove = None;
     for (k, sphere) in ctx.scene.spheres.iter_mut().enumerate() {
         ui.separator();
@@ -28,6 +29,9 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
         quantity(ui, "contact stiffness k_c", &mut sphere.stiffness, "N/m", 10.0);
         quantity(ui, "friction c_f", &mut sphere.friction, "", 0.01);
         quantity(ui, "contact damping", &mut sphere.damping, "N·s/m", 0.01);
+        if moving {
+            motion(ui, "motion from the centre", &mut sphere.motion);
+        }
         problems_for(ui, ctx.problems, &format!("spheres[{k}]"));
     }
     if let Some(k) = remove {
@@ -37,4 +41,7 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
         ctx.scene.spheres.push(SphereSpec::default());
     }
     ui.label(egui::RichText::new("Shift-drag in the view moves sphere 0.").weak());
+    if !moving {
+        ui.label(egui::RichText::new("Turn on MovingSpheres (Effects) to animate a sphere.").weak());
+    }
 }

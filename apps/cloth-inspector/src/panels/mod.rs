@@ -38,6 +38,14 @@ pub fn quantity(ui: &mut egui::Ui, label: &str, value: &mut f64, unit: &str, spe
     .inner
 }
 
+/// A prescribed motion `d(t) = velocity · t + amplitude · sin(2π f t)`: its three fields.
+pub fn motion(ui: &mut egui::Ui, label: &str, value: &mut cloth_core::scene::Motion) -> bool {
+    ui.label(egui::RichText::new(format!("{label}: d(t) = v·t + A·sin(2π f t)")).weak());
+    let mut changed = vector(ui, "  velocity v", &mut value.velocity, "m/s", 0.01);
+    changed |= vector(ui, "  amplitude A", &mut value.amplitude, "m", 0.005);
+    changed | quantity(ui, "  frequency f", &mut value.frequency, "Hz", 0.01)
+}
+
 /// A 3-vector with its unit.
 pub fn vector(ui: &mut egui::Ui, label: &str, value: &mut [f64; 3], unit: &str, speed: f64) -> bool {
     ui.horizontal(|ui| {
