@@ -263,25 +263,58 @@ fn driven_effects_move_the_cloth(backend: &Backend) {
 }
 
 /// An absent effect gives exactly what the effect at zero strength gives: the wind with a zero
-/// coefficient, pins and spheres with a zero motion, air drag with a zero rate. (Exact on the
-/// CPU; on a GPU the two pipeline variants are compiled separately, so a compiler that fuses
-/// multiply-adds may round them differently: within the f32 tolerance there.)
+/// coefficient, pins and spheres with a zero motion, air drag with a zero rate (added to a scene
+/// without them), and gravity with g = 0, spring damping with c_d = 0 and friction with c_f = 0
+/// (taken out of a scene with them). (Exact on the CPU; on a GPU the two pipeline variants are
+/// compiled separately, so a compiler that fuses multiply-adds may round them differently: within
+/// the f32 tolerance there.) The spring kinds and contact have no "zero strength" that means
+/// absent under every integrator (XPBD's compliance is 1/k; its contact is a projection, not a
+/// force), so they are checked by the compile-out test and by their own conformance cases.
 fn an_absent_effect_equals_zero_strength(backend: &Backend) {
     use cloth_core::Integrator;
     let mut base = with_grid(scene("hold.ron"), [8, 8]);
     base.cloth.pins = vec![Pin::Corner(Corner::TopLeft)];
     let tolerance = if backend.name.starts_with("cpu") { 0.0 } else { F32_TOLERANCE_M };
     for integrator in Integrator::ALL {
-        let absent = Scene { integrator, ..base.clone() };
-        let mut zero = absent.clone();
-        zero.effects =
-            zero.effects.with(Effect::Wind).with(Effect::MovingPins).with(Effect::MovingSpheres).with(Effect::AirDrag);
-        zero.wind = cloth_core::scene::WindSpec { velocity: [2.0, 0.0, 1.0], coefficient: 0.0, ..Default::default() };
-        zero.air_drag = 0.0;
-        let Some((a, _)) = run(backend, &absent, 12) else { return };
-        let Some((b, _)) = run(backend, &zero, 12) else { return };
-        let d = max_difference(&a, &b);
-        assert!(d <= tolerance, "{integrator:?}: absent effects and zero strength differ by {d} m");
+        let with_base = Scene { integrator, ..base.clone() };
+        // Driven effects and air drag: added at zero strength.
+        let mut zero_driven = with_base.clone();
+        zero_driven.effects = zero_driven
+            .effects
+            .with(Effect::Wind)
+            .with(Effect::MovingPins)
+            .with(Effect::MovingSpheres)
+            .with(Effect::AirDrag);
+        zero_driven.wind =
+            cloth_core::scene::WindSpec { velocity: [2.0, 0.0, 1.0], coefficient: 0.0, ..Default::default() };
+        zero_driven.air_drag = 0.0;
+        // Gravity, spring damping and friction: taken out, against the same scene at zero strength.
+        let mut zero_base = with_base.clone();
+        zero_base.gravity = [0.0; 3];
+        zero_base.springs.structural.damping = 0.0;
+        zero_base.springs.shear.damping = 0.0;
+        zero_base.springs.bend.damping = 0.0;
+        zero_base.spheres[0].friction = 0.0;
+        // Without gravity nothing happens: let the cloth start by moving the sphere up into it.
+        zero_base.effects = zero_base.effects.with(Effect::MovingSpheres);
+        zero_base.spheres[0].motion.velocity = [0.0, 1.5, 0.3];
+        let mut absent_base = zero_base.clone();
+        absent_base.effects =
+            absent_base.effects.without(Effect::Gravity).without(Effect::SpringDamping).without(Effect::Friction);
+        for (what, absent, zero) in [
+            ("wind, moving pins, moving spheres, air drag", &with_base, &zero_driven),
+            ("gravity, spring damping, friction", &absent_base, &zero_base),
+        ] {
+            let Some((a, _)) = run(backend, absent, 12) else { return };
+            let Some((b, _)) = run(backend, zero, 12) else { return };
+            let d = max_difference(&a, &b);
+            assert!(d <= tolerance, "{integrator:?}, {what}: absent and zero strength differ by {d} m");
+            // The case must exercise something: the cloth moved.
+            let start = reference_f32(absent, 0);
+            let moved =
+                a.positions.iter().zip(&start.positions).any(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > 1e-3));
+            assert!(moved, "{integrator:?}, {what}: the cloth did not move, the comparison shows nothing");
+        }
     }
 }
 
