@@ -4,12 +4,15 @@
 # conformance test binary as devbin/conformance) and the Vulkan loader's .deb files in .gl/.
 # Writes its logs and CSVs under $OUT.
 #
-# Usage: bash scripts/gpu-check.sh [conformance] [study] [bench]   (default: all three)
+# Usage: bash scripts/gpu-check.sh [conformance] [stability] [study] [bench] [effects]
+#        (default: conformance study bench)
 #   conformance  the conformance suite with CI=1 (a missing adapter fails), and `cloth run` on each
 #                GPU backend
 #   study        `cloth study accuracy` on every backend, writing the report docs/accuracy.md
 #                (and its CSV, SVG and PNG), copied to $OUT
+#   stability    the stability suite's GPU cases (devbin/stability) with CI=1
 #   bench        `cloth bench` on both GPU backends
+#   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs on both GPU backends
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"
@@ -42,4 +45,12 @@ if [[ " $checks " == *" bench "* ]]; then
   echo "== bench"
   devbin/cloth bench --backends wgpu,vulkano --grids 32,128,512,1024 --substeps 16 --frames 20 --csv "$OUT/bench16.csv" 2>&1 | tee "$OUT/bench16.txt"
   devbin/cloth bench --backends wgpu,vulkano --grids 128,1024 --substeps 64 --frames 20 --csv "$OUT/bench64.csv" 2>&1 | tee "$OUT/bench64.txt"
+fi
+if [[ " $checks " == *" stability "* ]]; then
+  echo "== stability (GPU cases, CI=1)"
+  CI=1 CLOTH_SOAK_SUBSTEPS=1000000 devbin/stability --test-threads 2 wgpu:: vulkano:: 2>&1 | tee "$OUT/stability.txt" | grep -E "^test |test result|panicked" | tail -60
+fi
+if [[ " $checks " == *" effects "* ]]; then
+  echo "== bench --effects"
+  devbin/cloth bench --effects --backends wgpu,vulkano --grids 128,512,1024 --frames 10 --csv "$OUT/effects.csv" 2>&1 | tee "$OUT/effects.txt"
 fi

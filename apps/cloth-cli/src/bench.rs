@@ -22,9 +22,9 @@ pub struct BenchArgs {
     /// Grid sides to measure (square grids), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = vec![32u32, 128, 512])]
     grids: Vec<u32>,
-    /// Substeps per frame.
-    #[arg(long, default_value_t = 16)]
-    substeps: u32,
+    /// Substeps per frame (default 16; with `--effects`, the scene's own).
+    #[arg(long)]
+    substeps: Option<u32>,
     /// Frames timed per row (after one warm-up frame).
     #[arg(long, default_value_t = 10)]
     frames: u32,
@@ -35,8 +35,8 @@ pub struct BenchArgs {
     #[arg(long)]
     csv: Option<std::path::PathBuf>,
     /// Instead, print what each effect costs: the bare cloth, then each effect of the scene
-    /// added in turn (ms per frame per backend, at each of `--grids`, `--substeps` ignored:
-    /// the scene's own substeps).
+    /// added in turn (ms per frame per backend, at each of `--grids`; the scene's own
+    /// substeps unless `--substeps` is given).
     #[arg(long)]
     effects: bool,
     /// The scene of `--effects` (default: scenes/flag.ron, which has every effect).
@@ -71,6 +71,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if args.effects {
         return effects(&args, &chosen);
     }
+    let substeps = args.substeps.unwrap_or(16);
     println!(
         "{:<8} {:>6} {:>9} {:>12} {:>16} {:>12} {:>11}  adapter",
         "backend", "grid", "substeps", "ms/frame", "vertex-substep/s", "submits/frm", "waits/frm"
@@ -80,7 +81,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         for &n in &args.grids {
             let mut scene = Scene::default();
             scene.cloth.resolution = [n, n];
-            scene.time.substeps = Substeps::Fixed(args.substeps);
+            scene.time.substeps = Substeps::Fixed(substeps);
             let mut sim = match (backend.create)(&scene, args.adapter.as_deref()) {
                 Ok(sim) => sim,
                 Err(SimError::Unavailable { reason, .. }) => {
@@ -116,9 +117,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 backend: backend.name.to_string(),
                 adapter: sim.adapter_name(),
                 grid: n,
-                substeps: args.substeps,
+                substeps,
                 ms_per_frame: seconds * 1e3 / frames,
-                vertex_substeps_per_s: (n as f64 * n as f64) * args.substeps as f64 * frames / seconds,
+                vertex_substeps_per_s: (n as f64 * n as f64) * substeps as f64 * frames / seconds,
                 submissions_per_frame: submissions as f64 / frames,
                 host_waits_per_frame: waits as f64 / frames,
             };
@@ -178,6 +179,9 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
             } else {
                 [((n as f64 * w / h).round() as u32).max(2), n]
             };
+            if let Some(substeps) = args.substeps {
+                scene.time.substeps = Substeps::Fixed(substeps);
+            }
             scene.validate().with_context(|| format!("the scene '{}' at grid {n}", scene.name))?;
             let [nx, ny] = scene.cloth.resolution;
             let bar = ProgressBar::new(effect_cost::steps(&scene).len() as u64).with_style(
