@@ -23,6 +23,43 @@ use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
 /// Vertices per rayon task: below this, splitting costs more than it saves.
 const PARALLEL_CHUNK: usize = 512;
 
+/// The effects a vertex's force evaluation tests, as the bits of a compile-time constant `E`
+/// (bit `k` is `VARIANT_EFFECTS[k]`). Each combination is its own compiled function
+/// ([`variant_force_and_stick`], [`variant_predicted_velocity`]), picked once per pass by
+/// [`specialised!`] and called through a function pointer: the CPU's counterpart of the GPU's
+/// specialization constants, so an absent effect is not even a branch in the per-vertex code.
+/// (Only these small functions are instantiated 64 times; the loops around them are not, which
+/// keeps the build time.) The other effects need no bit:
+/// an absent spring kind has no springs in the list, absent contact no spheres, and the pins'
+/// motion is computed once per substep.
+const VARIANT_EFFECTS: [Effect; 6] =
+    [Effect::Gravity, Effect::SpringDamping, Effect::AirDrag, Effect::Wind, Effect::MovingSpheres, Effect::Friction];
+
+/// The variant bits of an effect set (see [`VARIANT_EFFECTS`]).
+fn variant_bits(effects: crate::effects::EffectSet) -> u16 {
+    VARIANT_EFFECTS.iter().enumerate().filter(|(_, e)| effects.contains(**e)).map(|(k, _)| 1u16 << k).sum()
+}
+
+/// Evaluates `$call` with the constant `$E` equal to `$bits` (which is below 64): one compiled
+/// copy of `$call` per combination of [`VARIANT_EFFECTS`].
+macro_rules! specialised {
+    ($bits:expr, $E:ident => $call:expr) => {
+        specialised!(@arms $bits, $E, $call, [
+            0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31
+            32 33 34 35 36 37 38 39 40 41 42 43 44 45 46 47 48 49 50 51 52 53 54 55 56 57 58 59 60 61 62 63
+        ])
+    };
+    (@arms $bits:expr, $E:ident, $call:expr, [$($n:literal)*]) => {
+        match $bits {
+            $( $n => {
+                const $E: u16 = $n;
+                $call
+            } )*
+            _ => unreachable!("variant bits have six bits"),
+        }
+    };
+}
+
 /// One end of a spring in precision `R`.
 #[derive(Clone, Copy, Debug)]
 struct End<R> {
@@ -216,16 +253,13 @@ impl<R: Real> ReferenceSimulator<R> {
     }
 
     /// The read-only data of a force evaluation at state `(x, v)` and time `time`.
+    /// The per-vertex functions are the variant compiled for the scene's effects.
     fn context<'a>(&'a self, x: &'a [Vec3<R>], v: &'a [Vec3<R>], time: R) -> StepContext<'a, R> {
-        StepContext {
-            params: &self.params,
-            effects: self.scene.effects,
-            first: &self.first,
-            ends: &self.ends,
-            x,
-            v,
-            time,
-        }
+        let (force, predict) = specialised!(variant_bits(self.scene.effects), E => (
+            variant_force_and_stick::<R, E> as ForceFn<R>,
+            variant_predicted_velocity::<R, E> as PredictFn<R>,
+        ));
+        StepContext { params: &self.params, force, predict, first: &self.first, ends: &self.ends, x, v, time }
     }
 
     /// Positions in this precision, m.
@@ -387,26 +421,11 @@ impl<R: Real> ReferenceSimulator<R> {
         let effects = self.scene.effects;
         let (t, t1) = (self.clock, self.clock + h);
         let x0 = self.positions.clone();
-        let ctx = self.context(&x0, &self.velocities, t);
         let (pin_step, pin_velocity) = p.pin_step(t, t1, self.moving_pins());
-        let mut x = Vec::with_capacity(x0.len());
-        for (i, &xi) in x0.iter().enumerate() {
-            if self.pinned[i] {
-                x.push(xi + pin_step);
-                continue;
-            }
-            let mut v = self.velocities[i];
-            if effects.contains(Effect::Gravity) {
-                v += p.gravity * h;
-            }
-            if effects.contains(Effect::AirDrag) {
-                v += air_drag_force(m, p.air_drag, v) * (h / m);
-            }
-            if effects.contains(Effect::Wind) {
-                v += ctx.wind_force(i, v) * (h / m);
-            }
-            x.push(xi + v * h);
-        }
+        let ctx = self.context(&x0, &self.velocities, t);
+        let mut x: Vec<Vec3<R>> = (0..x0.len())
+            .map(|i| if self.pinned[i] { x0[i] + pin_step } else { x0[i] + ctx.predicted_velocity(i) * h })
+            .collect();
         let inverse_mass = |i: usize| if self.pinned[i] { R::zero() } else { w };
         let moving = self.moving_spheres();
         // Each sphere where it ends the substep, and how far it moved during it.
@@ -476,24 +495,20 @@ impl<R: Real> ReferenceSimulator<R> {
     fn euler_substep(&mut self) {
         let (t, t1) = (self.clock, self.clock + self.params.dt);
         let (pin_step, pin_velocity) = self.params.pin_step(t, t1, self.moving_pins());
-        let ctx = StepContext {
-            params: &self.params,
-            effects: self.scene.effects,
-            first: &self.first,
-            ends: &self.ends,
-            x: &self.positions,
-            v: &self.velocities,
-            time: t,
-        };
+        let mut next_positions = std::mem::take(&mut self.next_positions);
+        let mut next_velocities = std::mem::take(&mut self.next_velocities);
+        let ctx = self.context(&self.positions, &self.velocities, t);
         let (x, pinned) = (&self.positions, &self.pinned);
-        self.next_positions
+        next_positions
             .par_iter_mut()
-            .zip(self.next_velocities.par_iter_mut())
+            .zip(next_velocities.par_iter_mut())
             .enumerate()
             .with_min_len(PARALLEL_CHUNK)
             .for_each(|(i, (x_new, v_new))| {
                 (*x_new, *v_new) = if pinned[i] { (x[i] + pin_step, pin_velocity) } else { ctx.vertex_update(i) };
             });
+        self.next_positions = next_positions;
+        self.next_velocities = next_velocities;
         std::mem::swap(&mut self.positions, &mut self.next_positions);
         std::mem::swap(&mut self.velocities, &mut self.next_velocities);
         self.clock = t1;
@@ -515,16 +530,36 @@ impl<R: Real> ReferenceSimulator<R> {
     }
 }
 
-/// Read-only data of one force evaluation.
+/// A vertex's resultant force and the normal of a contact whose friction holds it, compiled for
+/// one combination of [`VARIANT_EFFECTS`] (see [`variant_force_and_stick`]).
+type ForceFn<R> = fn(&StepContext<'_, R>, usize, R) -> (Vec3<R>, Option<Vec3<R>>);
+/// XPBD's predicted velocity of a vertex, compiled for one combination of [`VARIANT_EFFECTS`].
+type PredictFn<R> = fn(&StepContext<'_, R>, usize) -> Vec3<R>;
+
+/// Read-only data of one force evaluation, and the variant of the per-vertex functions compiled
+/// for the scene's effects.
 struct StepContext<'a, R: Real> {
     params: &'a Params<R>,
-    effects: crate::effects::EffectSet,
+    force: ForceFn<R>,
+    predict: PredictFn<R>,
     first: &'a [usize],
     ends: &'a [End<R>],
     x: &'a [Vec3<R>],
     v: &'a [Vec3<R>],
     /// Time of the state `(x, v)`, s.
     time: R,
+}
+
+/// The effects of variant `E` as constants (bit `k` of `E` is `VARIANT_EFFECTS[k]`).
+struct Variant<const E: u16>;
+
+impl<const E: u16> Variant<E> {
+    const GRAVITY: bool = E & 1 != 0;
+    const SPRING_DAMPING: bool = E & 2 != 0;
+    const AIR_DRAG: bool = E & 4 != 0;
+    const WIND: bool = E & 8 != 0;
+    const MOVING_SPHERES: bool = E & 16 != 0;
+    const FRICTION: bool = E & 32 != 0;
 }
 
 impl<R: Real> StepContext<'_, R> {
@@ -543,55 +578,88 @@ impl<R: Real> StepContext<'_, R> {
         wind_force(normal, v, wind, p.wind_coefficient_area)
     }
 
-    /// The resultant force on free vertex `i`, N: gravity, springs, drag, wind, then contact and
-    /// friction (computed from the others). `friction_dt` is the step the friction's stopping
-    /// term refers to.
+    /// XPBD's prediction of free vertex `i`'s velocity over the substep, m/s (see
+    /// [`variant_predicted_velocity`]).
+    fn predicted_velocity(&self, i: usize) -> Vec3<R> {
+        (self.predict)(self, i)
+    }
+
+    /// The resultant force on free vertex `i`, N (see [`variant_force_and_stick`]).
     fn vertex_force(&self, i: usize, friction_dt: R) -> Vec3<R> {
         self.vertex_force_and_stick(i, friction_dt).0
     }
 
     /// [`Self::vertex_force`], with the normal of a contact whose friction holds the vertex, if any.
     fn vertex_force_and_stick(&self, i: usize, friction_dt: R) -> (Vec3<R>, Option<Vec3<R>>) {
-        let p = self.params;
-        let (x, v) = (self.x[i], self.v[i]);
-        let mut force = Vec3::zero();
-        if self.effects.contains(Effect::Gravity) {
-            force += gravity_force(p.mass, p.gravity);
-        }
-        let damped = self.effects.contains(Effect::SpringDamping);
-        for end in &self.ends[self.first[i]..self.first[i + 1]] {
-            let j = end.other;
-            let damping = if damped { p.damping[end.kind] } else { R::zero() };
-            force += spring_force(x, self.x[j], v, self.v[j], end.rest_length, p.stiffness[end.kind], damping);
-        }
-        if self.effects.contains(Effect::AirDrag) {
-            force += air_drag_force(p.mass, p.air_drag, v);
-        }
-        if self.effects.contains(Effect::Wind) {
-            force += self.wind_force(i, v);
-        }
-        // Contact and friction: R_o, the resultant of the other forces, is the force so far.
-        // Against a moving sphere they act on the velocity relative to it.
-        let other_forces = force;
-        let moving = self.effects.contains(Effect::MovingSpheres);
-        let mut stuck = None;
-        for s in &p.spheres {
-            let (center, sphere_velocity) = s.at(self.time, moving);
-            let v_rel = v - sphere_velocity;
-            if let Some(contact) = contact_force(x, v_rel, center, s.radius, s.stiffness, s.damping) {
-                force += contact.force;
-                if self.effects.contains(Effect::Friction) {
-                    force += friction_force(other_forces, v_rel, contact.normal, p.mass, friction_dt, s.friction);
-                    if stuck.is_none()
-                        && friction_holds(other_forces, v_rel, contact.normal, p.mass, friction_dt, s.friction)
-                    {
-                        stuck = Some(contact.normal);
-                    }
+        (self.force)(self, i, friction_dt)
+    }
+}
+
+/// XPBD's prediction of free vertex `i`'s velocity over the substep, m/s: the external forces
+/// only (gravity, drag, wind), `v + Δt F/m`, each added in the GPU's order, for the effects of
+/// variant `E`.
+fn variant_predicted_velocity<R: Real, const E: u16>(ctx: &StepContext<'_, R>, i: usize) -> Vec3<R> {
+    let p = ctx.params;
+    let (h, m) = (p.dt, p.mass);
+    let mut v = ctx.v[i];
+    if Variant::<E>::GRAVITY {
+        v += p.gravity * h;
+    }
+    if Variant::<E>::AIR_DRAG {
+        v += air_drag_force(m, p.air_drag, v) * (h / m);
+    }
+    if Variant::<E>::WIND {
+        v += ctx.wind_force(i, v) * (h / m);
+    }
+    v
+}
+
+/// The resultant force on free vertex `i`, N: gravity, springs, drag, wind, then contact and
+/// friction (computed from the others), for the effects of variant `E`; with the normal of a
+/// contact whose friction holds the vertex, if any. `friction_dt` is the step the friction's
+/// stopping term refers to.
+fn variant_force_and_stick<R: Real, const E: u16>(
+    ctx: &StepContext<'_, R>,
+    i: usize,
+    friction_dt: R,
+) -> (Vec3<R>, Option<Vec3<R>>) {
+    let p = ctx.params;
+    let (x, v) = (ctx.x[i], ctx.v[i]);
+    let mut force = Vec3::zero();
+    if Variant::<E>::GRAVITY {
+        force += gravity_force(p.mass, p.gravity);
+    }
+    for end in &ctx.ends[ctx.first[i]..ctx.first[i + 1]] {
+        let j = end.other;
+        let damping = if Variant::<E>::SPRING_DAMPING { p.damping[end.kind] } else { R::zero() };
+        force += spring_force(x, ctx.x[j], v, ctx.v[j], end.rest_length, p.stiffness[end.kind], damping);
+    }
+    if Variant::<E>::AIR_DRAG {
+        force += air_drag_force(p.mass, p.air_drag, v);
+    }
+    if Variant::<E>::WIND {
+        force += ctx.wind_force(i, v);
+    }
+    // Contact and friction: R_o, the resultant of the other forces, is the force so far.
+    // Against a moving sphere they act on the velocity relative to it.
+    let other_forces = force;
+    let mut stuck = None;
+    for s in &p.spheres {
+        let (center, sphere_velocity) = s.at(ctx.time, Variant::<E>::MOVING_SPHERES);
+        let v_rel = v - sphere_velocity;
+        if let Some(contact) = contact_force(x, v_rel, center, s.radius, s.stiffness, s.damping) {
+            force += contact.force;
+            if Variant::<E>::FRICTION {
+                force += friction_force(other_forces, v_rel, contact.normal, p.mass, friction_dt, s.friction);
+                if stuck.is_none()
+                    && friction_holds(other_forces, v_rel, contact.normal, p.mass, friction_dt, s.friction)
+                {
+                    stuck = Some(contact.normal);
                 }
             }
         }
-        (force, stuck)
     }
+    (force, stuck)
 }
 
 impl<R: Real> ReferenceSimulator<R> {
@@ -660,5 +728,47 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
 
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
         Ok(Diagnostics { max_penetration_m: self.max_penetration.to_f64_lossy(), substeps_run: self.substeps_run })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::EffectSet;
+
+    /// The constants of variant `E`, in [`VARIANT_EFFECTS`] order.
+    fn flags<const E: u16>() -> [bool; 6] {
+        [
+            Variant::<E>::GRAVITY,
+            Variant::<E>::SPRING_DAMPING,
+            Variant::<E>::AIR_DRAG,
+            Variant::<E>::WIND,
+            Variant::<E>::MOVING_SPHERES,
+            Variant::<E>::FRICTION,
+        ]
+    }
+
+    #[test]
+    fn each_variant_constant_is_the_bit_of_its_effect() {
+        assert_eq!(
+            VARIANT_EFFECTS,
+            [
+                Effect::Gravity,
+                Effect::SpringDamping,
+                Effect::AirDrag,
+                Effect::Wind,
+                Effect::MovingSpheres,
+                Effect::Friction
+            ]
+        );
+        let on = |k: usize| variant_bits(EffectSet::empty().with(VARIANT_EFFECTS[k]));
+        assert_eq!((0..6).map(on).collect::<Vec<_>>(), [1, 2, 4, 8, 16, 32]);
+        let single = [flags::<1>(), flags::<2>(), flags::<4>(), flags::<8>(), flags::<16>(), flags::<32>()];
+        for (k, f) in single.iter().enumerate() {
+            assert_eq!(*f, std::array::from_fn(|j| j == k), "bit {k}");
+        }
+        assert_eq!(flags::<0>(), [false; 6]);
+        assert_eq!(flags::<63>(), [true; 6]);
+        assert_eq!(variant_bits(EffectSet::from_iter(Effect::ALL)), 63);
     }
 }
