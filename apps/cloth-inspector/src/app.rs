@@ -61,6 +61,8 @@ pub struct LaunchOptions {
     pub screenshot: Option<(u32, PathBuf)>,
     /// Cloth colouring to start with.
     pub color: Option<ColorMode>,
+    /// Measure the cost of each effect at start (a headless run waits for it and logs it).
+    pub measure_effects: bool,
 }
 
 /// Runtime resources: never persisted.
@@ -181,6 +183,10 @@ impl InspectorApp {
             state,
         };
         app.rebuild();
+        if options.measure_effects {
+            let backend = app.state.backend.clone();
+            app.runtime.effect_costs.start(&app.state.scene, &backend);
+        }
         app
     }
 
@@ -517,6 +523,9 @@ impl InspectorApp {
                     for notice in &self.runtime.notices {
                         eprintln!("notice: {notice}");
                     }
+                    for line in self.runtime.effect_costs.summary() {
+                        eprintln!("{line}");
+                    }
                     eprintln!("wrote {}", path.display());
                 }
                 Err(e) => eprintln!("screenshot failed: {e}"),
@@ -524,7 +533,9 @@ impl InspectorApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }
-        if self.runtime.frames_run >= frames && !self.runtime.screenshot_requested {
+        // A measurement started at launch is waited for, so the picture shows it.
+        let measuring = self.runtime.effect_costs.is_running();
+        if self.runtime.frames_run >= frames && !measuring && !self.runtime.screenshot_requested {
             self.runtime.screenshot_requested = true;
             let done = self.runtime.screenshot_done.clone();
             ctx.request_screenshot(move |image| {

@@ -35,6 +35,10 @@ struct Args {
     /// Colour the cloth by: plain, strain (structural), shear, bend, contact or speed.
     #[arg(long, value_parser = ["plain", "strain", "shear", "bend", "contact", "speed"])]
     color: Option<String>,
+    /// Measure what each effect of the scene costs on the backend at start (the stats panel shows
+    /// it; with --screenshot the run waits for it and prints it).
+    #[arg(long)]
+    measure_effects: bool,
 }
 
 fn main() -> Result<()> {
@@ -60,6 +64,7 @@ fn main() -> Result<()> {
             "speed" => render::ColorMode::Speed,
             _ => render::ColorMode::Plain,
         }),
+        measure_effects: args.measure_effects,
     };
     let native = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()

@@ -78,3 +78,41 @@ fn screenshot_shows_the_cloth_over_the_sphere_on_every_backend() {
         let _ = std::fs::remove_file(out);
     }
 }
+
+/// `--measure-effects`: the stats panel's per-effect breakdown is measured in the background at
+/// start, and a headless run waits for it and prints it: a row for the bare cloth and one for each
+/// effect of the scene, with positive times.
+#[test]
+fn the_effect_cost_breakdown_is_measured_and_shown() {
+    if !has_xvfb() {
+        assert!(std::env::var_os("CI").is_none(), "xvfb-run is missing and CI is set");
+        eprintln!("SKIPPED: xvfb-run is not installed");
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let out = std::env::temp_dir().join(format!("cloth-inspector-costs-{}.png", std::process::id()));
+    let output = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1280x800x24"])
+        .arg(env!("CARGO_BIN_EXE_cloth-inspector"))
+        .args(["--scene", "scenes/hold.ron", "--backend", "wgpu", "--frames", "5", "--measure-effects"])
+        .arg("--screenshot")
+        .arg(&out)
+        .current_dir(&root)
+        .output()
+        .expect("xvfb-run starts");
+    let log = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "the inspector exited with {}:\n{log}", output.status);
+    assert!(log.contains("effect costs on wgpu"), "no breakdown printed:\n{log}");
+    let scene = cloth_core::Scene::load(&root.join("scenes/hold.ron")).expect("hold.ron loads");
+    let rows: Vec<&str> = log.lines().filter(|l| l.contains("ms/frame")).collect();
+    assert_eq!(rows.len(), 1 + scene.effects.iter().count(), "one row per effect and the bare cloth:\n{log}");
+    assert!(rows[0].contains("bare cloth"), "{log}");
+    for (row, effect) in rows[1..].iter().zip(scene.effects.iter()) {
+        assert!(row.contains(&format!("{effect:?}")), "row for {effect:?}: {row}");
+    }
+    for row in &rows {
+        let ms: f64 = row.split_whitespace().rev().nth(3).and_then(|x| x.parse().ok()).expect("a time");
+        assert!(ms > 0.0 && ms.is_finite(), "{row}");
+    }
+    let _ = std::fs::remove_file(out);
+}

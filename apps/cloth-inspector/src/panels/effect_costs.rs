@@ -29,6 +29,49 @@ pub struct EffectCostsPanel {
 }
 
 impl EffectCostsPanel {
+    /// Starts measuring `scene` on `backend` in the background.
+    pub fn start(&mut self, scene: &Scene, backend: &str) {
+        let progress = Arc::new(Mutex::new(Progress::default()));
+        let (shared, scene, name) = (progress.clone(), scene.clone(), backend.to_string());
+        std::thread::spawn(move || {
+            let result = cloth_backends::find(&name).and_then(|b| {
+                effect_cost::measure(&scene, &b, None, FRAMES, |done, total| {
+                    if let Ok(mut p) = shared.lock() {
+                        (p.done, p.total) = (done, total);
+                    }
+                })
+                .map_err(|e| e.to_string())
+            });
+            if let Ok(mut p) = shared.lock() {
+                p.result = Some(result);
+            }
+        });
+        self.running = Some(progress);
+        self.message = None;
+    }
+
+    /// Whether a measurement is under way.
+    pub fn is_running(&self) -> bool {
+        self.running.is_some()
+    }
+
+    /// The last breakdown (or the error it ended with) as lines of text, for a headless run's log.
+    pub fn summary(&self) -> Vec<String> {
+        let mut lines: Vec<String> = self.message.iter().map(|m| format!("effect costs failed: {m}")).collect();
+        if let Some((breakdown, _, backend)) = &self.last {
+            lines.push(format!(
+                "effect costs on {backend} ({}, {} substeps per frame, {}):",
+                breakdown.adapter,
+                breakdown.substeps,
+                breakdown.timer()
+            ));
+            for r in &breakdown.rows {
+                lines.push(format!("  {:<22} {:>10.3} ms/frame {:>+10.3} ms", r.label(), r.ms_per_frame, r.added_ms));
+            }
+        }
+        lines
+    }
+
     /// `scene` is the one running on `backend` now.
     pub fn show(&mut self, ui: &mut egui::Ui, scene: &Scene, backend: &str) {
         let idle = self.running.is_none();
@@ -41,23 +84,7 @@ impl EffectCostsPanel {
             ))
             .clicked()
         {
-            let progress = Arc::new(Mutex::new(Progress::default()));
-            let (shared, scene, name) = (progress.clone(), scene.clone(), backend.to_string());
-            std::thread::spawn(move || {
-                let result = cloth_backends::find(&name).and_then(|b| {
-                    effect_cost::measure(&scene, &b, None, FRAMES, |done, total| {
-                        if let Ok(mut p) = shared.lock() {
-                            (p.done, p.total) = (done, total);
-                        }
-                    })
-                    .map_err(|e| e.to_string())
-                });
-                if let Ok(mut p) = shared.lock() {
-                    p.result = Some(result);
-                }
-            });
-            self.running = Some(progress);
-            self.message = None;
+            self.start(scene, backend);
         }
         if let Some(progress) = &self.running {
             let p = progress.lock().map(|p| p.clone()).unwrap_or_default();
