@@ -11,7 +11,7 @@
 #   study        `cloth study accuracy` on every backend, writing the report docs/accuracy.md
 #                (and its CSV, SVG and PNG), copied to $OUT
 #   stability    the stability suite's GPU cases (devbin/stability) with CI=1
-#   bench        `cloth bench` on both GPU backends
+#   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
 #   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs on both GPU backends
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
@@ -43,8 +43,7 @@ if [[ " $checks " == *" study "* ]]; then
 fi
 if [[ " $checks " == *" bench "* ]]; then
   echo "== bench"
-  devbin/cloth bench --backends wgpu,vulkano --grids 32,128,512,1024 --substeps 16 --frames 20 --csv "$OUT/bench16.csv" 2>&1 | tee "$OUT/bench16.txt"
-  devbin/cloth bench --backends wgpu,vulkano --grids 128,1024 --substeps 64 --frames 20 --csv "$OUT/bench64.csv" 2>&1 | tee "$OUT/bench64.txt"
+  devbin/cloth bench --backends wgpu,vulkano --grids 32,128,512,1024,2048 --substeps 16,64,scaled --frames 20 --csv "$OUT/bench.csv" 2>&1 | tee "$OUT/bench.txt"
 fi
 if [[ " $checks " == *" stability "* ]]; then
   echo "== stability (GPU cases, CI=1)"

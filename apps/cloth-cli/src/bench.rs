@@ -1,13 +1,13 @@
-//! `cloth bench`: cost per frame of each backend on the drape scene at several grid sizes, and
-//! with `--effects`, what each effect of a scene costs (the bare cloth, then each effect added).
+//! `cloth bench`: throughput of each backend on the drape scene at several grid sizes and steps
+//! (GPU and CPU time per frame, vertex-substeps per second, the fraction of the device's
+//! memory-bandwidth ceiling, submissions and waits per frame), and with `--effects`, what each
+//! effect of a scene costs (the bare cloth, then each effect added).
 //!
 //! A benchmark, not a test: it prints figures and writes a CSV, and asserts nothing about speed.
 
-use std::io::Write;
-use std::time::Instant;
-
 use anyhow::{Context, Result};
 use cloth_backends::effect_cost;
+use cloth_backends::throughput::{self, MIN_BYTES_PER_VERTEX_SUBSTEP, StepRule, ThroughputRow};
 use cloth_core::{Scene, SimError, Substeps};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -22,9 +22,10 @@ pub struct BenchArgs {
     /// Grid sides to measure (square grids), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = vec![32u32, 128, 512])]
     grids: Vec<u32>,
-    /// Substeps per frame (default 16; with `--effects`, the scene's own).
-    #[arg(long)]
-    substeps: Option<u32>,
+    /// Substeps per frame, comma-separated: numbers, or `scaled` for the resolution-scaled step
+    /// dt = 0.04/n (default 16,64,scaled; with `--effects`, one number, default the scene's own).
+    #[arg(long, value_delimiter = ',')]
+    substeps: Vec<StepRule>,
     /// Frames timed per row (after one warm-up frame).
     #[arg(long, default_value_t = 10)]
     frames: u32,
@@ -47,17 +48,6 @@ pub struct BenchArgs {
 /// The default scene of `--effects`: every effect at once (a copy of `scenes/flag.ron`).
 const FLAG_SCENE: &str = include_str!("../../../scenes/flag.ron");
 
-struct Row {
-    backend: String,
-    adapter: String,
-    grid: u32,
-    substeps: u32,
-    ms_per_frame: f64,
-    vertex_substeps_per_s: f64,
-    submissions_per_frame: f64,
-    host_waits_per_frame: f64,
-}
-
 pub fn run(args: BenchArgs) -> Result<()> {
     let all = backends::all();
     let chosen: Vec<&backends::Backend> = if args.backends.is_empty() {
@@ -71,92 +61,147 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if args.effects {
         return effects(&args, &chosen);
     }
-    let substeps = args.substeps.unwrap_or(16);
+    let rules = if args.substeps.is_empty() {
+        vec![StepRule::Fixed(16), StepRule::Fixed(64), StepRule::Scaled]
+    } else {
+        args.substeps.clone()
+    };
+    // The ceiling: the device's copy bandwidth (measured through wgpu, on the adapter the GPU
+    // backends use), at the least a substep must move per vertex.
+    let bandwidth = if chosen.iter().any(|b| !b.name.starts_with("cpu")) {
+        match backends::copy_bandwidth(args.adapter.as_deref()) {
+            Ok(b) => {
+                println!(
+                    "device copy bandwidth: {:.3} TB/s ({} copies of {} MiB, bytes read + written, on {})",
+                    b.bytes_per_s / 1e12,
+                    b.copies,
+                    b.copy_bytes >> 20,
+                    b.adapter
+                );
+                println!(
+                    "ceiling at {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes per vertex-substep (read and write one position and \
+                     one velocity vec4): {:.2} G vertex-substeps/s\n",
+                    b.bytes_per_s / MIN_BYTES_PER_VERTEX_SUBSTEP / 1e9
+                );
+                Some(b)
+            }
+            Err(e) => {
+                println!("device copy bandwidth: not measured ({e})\n");
+                None
+            }
+        }
+    } else {
+        None
+    };
     println!(
-        "{:<8} {:>6} {:>9} {:>12} {:>16} {:>12} {:>11}  adapter",
-        "backend", "grid", "substeps", "ms/frame", "vertex-substep/s", "submits/frm", "waits/frm"
+        "{:<8} {:>6} {:>9} {:>10} {:>10} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
+        "backend",
+        "grid",
+        "substeps",
+        "dt (s)",
+        "GPU ms/f",
+        "CPU ms/f",
+        "wall ms/f",
+        "Gvs/s",
+        "ceiling",
+        "sub/w",
+        "finite"
     );
-    let mut rows = Vec::new();
-    for backend in chosen {
+    let per_backend = (args.grids.len() * rules.len()) as u64;
+    let bar = ProgressBar::new(chosen.len() as u64 * per_backend).with_style(
+        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut rows: Vec<ThroughputRow> = Vec::new();
+    let mut adapters: Vec<String> = Vec::new();
+    'backends: for backend in &chosen {
         for &n in &args.grids {
-            let mut scene = Scene::default();
-            scene.cloth.resolution = [n, n];
-            scene.time.substeps = Substeps::Fixed(substeps);
-            let mut sim = match (backend.create)(&scene, args.adapter.as_deref()) {
-                Ok(sim) => sim,
-                Err(SimError::Unavailable { reason, .. }) => {
-                    println!("{:<8} skipped: {reason}", backend.name);
-                    break;
+            for &rule in &rules {
+                bar.set_message(format!("{} {n}² {rule}", backend.name));
+                let result = throughput::measure(backend, args.adapter.as_deref(), n, rule, args.frames);
+                bar.inc(1);
+                let row = match result {
+                    Ok(row) => row,
+                    Err(SimError::Unavailable { reason, .. }) => {
+                        bar.suspend(|| println!("{:<8} skipped: {reason}", backend.name));
+                        bar.inc(per_backend.saturating_sub(1));
+                        continue 'backends;
+                    }
+                    Err(e) => {
+                        bar.suspend(|| println!("{:<8} {:>6} {rule:>9} refused: {e}", backend.name, format!("{n}²")));
+                        continue;
+                    }
+                };
+                let gpu = row.gpu_ms_per_frame.map_or("-".to_string(), |ms| format!("{ms:.3}"));
+                let ceiling = match (&bandwidth, row.gpu_ms_per_frame) {
+                    (Some(b), Some(_)) => format!("{:.1}%", 100.0 * row.ceiling_fraction(b.bytes_per_s)),
+                    _ => "-".to_string(),
+                };
+                bar.suspend(|| {
+                    println!(
+                        "{:<8} {:>6} {:>9} {:>10.3e} {:>10} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
+                        row.backend,
+                        format!("{n}²"),
+                        row.substeps,
+                        row.substep_dt,
+                        gpu,
+                        row.cpu_ms_per_frame,
+                        row.wall_ms_per_frame,
+                        row.vertex_substeps_per_s / 1e9,
+                        ceiling,
+                        format!("{:.0}/{:.2}", row.submissions_per_frame, row.host_waits_per_frame),
+                        if row.finite { "yes" } else { "NaN" }
+                    )
+                });
+                if !adapters.contains(&row.adapter) {
+                    adapters.push(row.adapter.clone());
                 }
-                Err(e) => {
-                    println!("{:<8} {:>6} refused: {e}", backend.name, format!("{n}²"));
-                    continue;
-                }
-            };
-            // Warm-up: pipeline compilation, first-use allocations.
-            sim.advance(1)?;
-            sim.diagnostics()?;
-            let mut submissions = 0u64;
-            let mut waits = 0u64;
-            let start = Instant::now();
-            for _ in 0..args.frames {
-                sim.advance(1)?;
-                let counts = sim.last_advance_counts();
-                submissions += counts.submissions as u64;
-                waits += counts.host_waits as u64;
+                rows.push(row);
             }
-            // One wait at the end so the time covers the work, not just its submission (counted
-            // for GPU backends; the CPU has nothing to wait for).
-            sim.diagnostics()?;
-            if submissions > 0 {
-                waits += 1;
-            }
-            let seconds = start.elapsed().as_secs_f64();
-            let frames = args.frames.max(1) as f64;
-            let row = Row {
-                backend: backend.name.to_string(),
-                adapter: sim.adapter_name(),
-                grid: n,
-                substeps,
-                ms_per_frame: seconds * 1e3 / frames,
-                vertex_substeps_per_s: (n as f64 * n as f64) * substeps as f64 * frames / seconds,
-                submissions_per_frame: submissions as f64 / frames,
-                host_waits_per_frame: waits as f64 / frames,
-            };
-            println!(
-                "{:<8} {:>6} {:>9} {:>12.3} {:>16.3e} {:>12.2} {:>11.2}  {}",
-                row.backend,
-                format!("{n}²"),
-                row.substeps,
-                row.ms_per_frame,
-                row.vertex_substeps_per_s,
-                row.submissions_per_frame,
-                row.host_waits_per_frame,
-                row.adapter
-            );
-            rows.push(row);
         }
     }
-    if let Some(path) = args.csv {
-        let mut f = std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?;
-        writeln!(
-            f,
-            "backend,adapter,grid,substeps,ms_per_frame,vertex_substeps_per_s,submissions_per_frame,host_waits_per_frame"
-        )?;
-        for r in rows {
-            writeln!(
-                f,
-                "{},\"{}\",{},{},{:.6},{:.6e},{:.3},{:.3}",
+    bar.finish_and_clear();
+    for a in &adapters {
+        println!("adapter: {a}");
+    }
+    println!(
+        "GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
+         of the work; Gvs/s: 1e9 vertex-substeps per second (from the GPU time where there is one); ceiling: that \
+         throughput times {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes over the copy bandwidth; sub/w: submissions and host \
+         waits per frame (the wait that ends the measurement included)."
+    );
+    if let Some(path) = &args.csv {
+        let b = bandwidth.as_ref().map(|b| b.bytes_per_s);
+        let mut csv = String::from(
+            "backend,adapter,grid,step_rule,substeps,substep_dt_s,frames,gpu_ms_per_frame,cpu_ms_per_frame,\
+             wall_ms_per_frame,vertex_substeps_per_s,ceiling_fraction,copy_bandwidth_bytes_per_s,\
+             submissions_per_frame,host_waits_per_frame,finite\n",
+        );
+        for r in &rows {
+            csv += &format!(
+                "{},\"{}\",{},{},{},{:.6e},{},{},{:.6},{:.6},{:.6e},{},{},{:.3},{:.3},{}\n",
                 r.backend,
                 r.adapter.replace('"', "'"),
                 r.grid,
+                r.rule,
                 r.substeps,
-                r.ms_per_frame,
+                r.substep_dt,
+                r.frames,
+                r.gpu_ms_per_frame.map_or(String::new(), |x| format!("{x:.6}")),
+                r.cpu_ms_per_frame,
+                r.wall_ms_per_frame,
                 r.vertex_substeps_per_s,
+                match (b, r.gpu_ms_per_frame) {
+                    (Some(b), Some(_)) => format!("{:.4}", r.ceiling_fraction(b)),
+                    _ => String::new(),
+                },
+                b.map_or(String::new(), |b| format!("{b:.6e}")),
                 r.submissions_per_frame,
-                r.host_waits_per_frame
-            )?;
+                r.host_waits_per_frame,
+                r.finite
+            );
         }
+        std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());
     }
     Ok(())
@@ -179,8 +224,10 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
             } else {
                 [((n as f64 * w / h).round() as u32).max(2), n]
             };
-            if let Some(substeps) = args.substeps {
-                scene.time.substeps = Substeps::Fixed(substeps);
+            match args.substeps.as_slice() {
+                [] => {}
+                [StepRule::Fixed(k)] => scene.time.substeps = Substeps::Fixed(*k),
+                _ => anyhow::bail!("--effects takes one number of substeps (or none: the scene's own)"),
             }
             scene.validate().with_context(|| format!("the scene '{}' at grid {n}", scene.name))?;
             let [nx, ny] = scene.cloth.resolution;

@@ -183,3 +183,58 @@ fn study_accuracy_writes_csv_plot_and_report_where_higher_order_is_more_accurate
     assert!(md.contains("study accuracy --grid 6x6"), "the report names the command that made it");
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// `cloth bench` on the CPU and both GPU backends: a row per backend, grid and step rule in the
+/// CSV, GPU rows timed by timestamps with a ceiling fraction against the measured copy bandwidth,
+/// one submission per frame, every row finite.
+#[test]
+fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
+    let csv = std::env::temp_dir().join(format!("cloth-bench-{}.csv", std::process::id()));
+    let out = cloth(&[
+        "bench",
+        "--backends",
+        "cpu,wgpu,vulkano",
+        "--grids",
+        "8,12",
+        "--substeps",
+        "4,scaled",
+        "--frames",
+        "2",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "bench failed: {text}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("device copy bandwidth:") && text.contains("ceiling at 64 bytes"), "{text}");
+    let table = std::fs::read_to_string(&csv).expect("the CSV was written");
+    let mut lines = table.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| {
+            // The adapter is the one quoted field (and may hold commas).
+            let (before, rest) = l.split_once(",\"").unwrap();
+            let (_, after) = rest.split_once("\",").unwrap();
+            let mut fields = vec![before.to_string(), String::new()];
+            fields.extend(after.split(',').map(str::to_string));
+            fields
+        })
+        .collect();
+    assert_eq!(rows.len(), 3 * 2 * 2, "{table}");
+    for r in &rows {
+        assert_eq!(r[column("finite")], "true", "{r:?}");
+        let gpu = !r[0].starts_with("cpu");
+        assert_eq!(r[column("gpu_ms_per_frame")].is_empty(), !gpu, "{r:?}");
+        assert_eq!(r[column("ceiling_fraction")].is_empty(), !gpu, "{r:?}");
+        if gpu {
+            assert_eq!(r[column("submissions_per_frame")], "1.000", "{r:?}");
+            let fraction: f64 = r[column("ceiling_fraction")].parse().unwrap();
+            assert!(fraction > 0.0 && fraction < 1.0, "{r:?}");
+        }
+    }
+    // The scaled step: round(frame_dt · n / 0.04) substeps, 3 at n = 8 and 5 at n = 12.
+    let scaled: Vec<&str> =
+        rows.iter().filter(|r| r[column("step_rule")] == "scaled").map(|r| r[column("substeps")].as_str()).collect();
+    assert_eq!(scaled, ["3", "5", "3", "5", "3", "5"]);
+    let _ = std::fs::remove_file(csv);
+}

@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod effect_cost;
+pub mod throughput;
 
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
 
@@ -85,4 +86,20 @@ pub fn find(name: &str) -> Result<Backend, String> {
     all.into_iter()
         .find(|b| b.name == name)
         .ok_or_else(|| format!("unknown backend '{name}': this build has {}", names.join(", ")))
+}
+
+pub use cloth_wgpu::CopyBandwidth;
+
+/// The device's copy bandwidth (see [`cloth_wgpu::copy_bandwidth`]): the memory ceiling of the
+/// GPU backends, measured through wgpu on the adapter whose name contains `adapter` (else the
+/// one `CLOTH_ADAPTER` names, else the best).
+///
+/// # Errors
+/// [`SimError::Unavailable`] without a matching adapter; [`SimError::Device`] when it fails.
+pub fn copy_bandwidth(adapter: Option<&str>) -> Result<CopyBandwidth, SimError> {
+    let choice = match adapter {
+        Some(name) => cloth_wgpu::AdapterChoice { name_contains: Some(name.to_string()) },
+        None => cloth_wgpu::AdapterChoice::from_env(),
+    };
+    cloth_wgpu::copy_bandwidth(&choice)
 }

@@ -12,11 +12,13 @@
 
 #![warn(missing_docs)]
 
+mod bandwidth;
 mod context;
 mod passes;
 mod simulator;
 mod timer;
 
+pub use bandwidth::{CopyBandwidth, copy_bandwidth};
 pub use context::{AdapterChoice, GpuContext, device_requirements, list_adapters};
 pub use simulator::WgpuSimulator;
 

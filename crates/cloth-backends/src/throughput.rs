@@ -1,0 +1,209 @@
+//! What `cloth bench` measures: how many vertex-substeps per second a backend runs on the drape
+//! scene at a given grid and step, the GPU and CPU time per frame, the submissions and host waits
+//! per frame, and how close that comes to the device's memory-bandwidth ceiling.
+
+use std::time::Instant;
+
+use cloth_core::scene::Substeps;
+use cloth_core::{Scene, SimError};
+
+use crate::Backend;
+
+/// The least a force-based substep must move per vertex, bytes: read its position and velocity
+/// (two 16-byte `vec4`s) and write them (two more). Everything else (neighbours, parameters,
+/// springs) can come from caches. At a copy bandwidth of `B` bytes/s the ceiling is
+/// `B / 64` vertex-substeps per second.
+pub const MIN_BYTES_PER_VERTEX_SUBSTEP: f64 = 64.0;
+
+/// The resolution-scaled step is `dt = SCALED_STEP_TIMES_N / n` s on an `n × n` grid: with the
+/// cloth's size and total mass fixed, a vertex's mass goes as `1/n²` and the stable step as `1/n`.
+pub const SCALED_STEP_TIMES_N: f64 = 0.04;
+
+/// How a benchmark row picks its substeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepRule {
+    /// This many substeps per frame.
+    Fixed(u32),
+    /// The resolution-scaled step `dt = 0.04/n`: `round(frame_dt · n / 0.04)` substeps per frame
+    /// (53 on a 128² grid at 60 frames per second).
+    Scaled,
+}
+
+impl std::str::FromStr for StepRule {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "scaled" => Ok(Self::Scaled),
+            _ => match s.parse::<u32>() {
+                Ok(n) if n > 0 => Ok(Self::Fixed(n)),
+                _ => Err(format!("'{s}' is neither a positive number of substeps nor 'scaled'")),
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for StepRule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Fixed(n) => write!(f, "{n}"),
+            Self::Scaled => write!(f, "scaled"),
+        }
+    }
+}
+
+/// Mass of each vertex of the benchmark's cloth, kg. The drape's fixed total mass (0.5 kg) makes a
+/// vertex lighter as the grid grows and its stable step shrink faster than `1/n` (2e-6 s at 1024²,
+/// where the scaled step is 4e-5 s): the rows would time NaN. At 10 g a vertex, with the drape's
+/// springs, the largest stable step is 2.4e-3 s at every grid, so 16, 64 and the scaled
+/// substeps all stay stable.
+pub const BENCH_VERTEX_MASS_KG: f64 = 0.01;
+
+/// The benchmark's scene: the default drape on an `n × n` grid with [`BENCH_VERTEX_MASS_KG`] per
+/// vertex, with the substeps of `rule`.
+pub fn bench_scene(n: u32, rule: StepRule) -> Scene {
+    let mut scene = Scene::default();
+    scene.cloth.resolution = [n, n];
+    scene.cloth.mass = cloth_core::scene::Mass::PerVertex(BENCH_VERTEX_MASS_KG);
+    let substeps = match rule {
+        StepRule::Fixed(k) => k,
+        StepRule::Scaled => ((scene.time.frame_dt * n as f64 / SCALED_STEP_TIMES_N).round() as u32).max(1),
+    };
+    scene.time.substeps = Substeps::Fixed(substeps);
+    scene
+}
+
+/// One row of the benchmark.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ThroughputRow {
+    /// Backend name.
+    pub backend: String,
+    /// Adapter, in words.
+    pub adapter: String,
+    /// Vertices along each side.
+    pub grid: u32,
+    /// How the substeps were chosen.
+    pub rule: StepRule,
+    /// Substeps per frame.
+    pub substeps: u32,
+    /// Substep length, s.
+    pub substep_dt: f64,
+    /// Frames timed.
+    pub frames: u32,
+    /// GPU time per frame from timestamp queries, ms (`None` without a GPU timer).
+    pub gpu_ms_per_frame: Option<f64>,
+    /// Host time per frame spent in `advance` (recording and submitting), ms.
+    pub cpu_ms_per_frame: f64,
+    /// Wall-clock time per frame from the first `advance` to the end of the work, ms.
+    pub wall_ms_per_frame: f64,
+    /// Vertex-substeps per second, from the GPU time where there is one, else the wall clock.
+    pub vertex_substeps_per_s: f64,
+    /// Command submissions per frame.
+    pub submissions_per_frame: f64,
+    /// Host waits per frame, the one that ends the measurement included.
+    pub host_waits_per_frame: f64,
+    /// Whether the state was still finite at the end (a fixed step too long for a fine grid
+    /// blows up; its timing is still the kernel's, but the row says so).
+    pub finite: bool,
+}
+
+impl ThroughputRow {
+    /// Fraction of the ceiling `bytes_per_s / MIN_BYTES_PER_VERTEX_SUBSTEP` this row reaches.
+    pub fn ceiling_fraction(&self, bytes_per_s: f64) -> f64 {
+        self.vertex_substeps_per_s * MIN_BYTES_PER_VERTEX_SUBSTEP / bytes_per_s
+    }
+}
+
+/// Measures one row: one warm-up frame (pipelines, first-use allocations), then `frames` frames
+/// each advanced by its own `advance(1)` (one submission, no wait), with GPU timing on where the
+/// backend has it, then one wait for the device.
+///
+/// # Errors
+/// What creating or running the simulator returns (e.g. [`SimError::Unavailable`] without an
+/// adapter, [`SimError::TooLarge`] for a grid the device cannot hold).
+pub fn measure(
+    backend: &Backend,
+    adapter: Option<&str>,
+    n: u32,
+    rule: StepRule,
+    frames: u32,
+) -> Result<ThroughputRow, SimError> {
+    let scene = bench_scene(n, rule);
+    let frames = frames.max(1);
+    let mut sim = (backend.create)(&scene, adapter)?;
+    sim.advance(1)?;
+    sim.diagnostics()?;
+    let gpu_timed = sim.set_gpu_timing(true);
+    let (mut submissions, mut waits) = (0u64, 0u64);
+    let mut host = 0.0;
+    let start = Instant::now();
+    for _ in 0..frames {
+        let t = Instant::now();
+        sim.advance(1)?;
+        host += t.elapsed().as_secs_f64();
+        let counts = sim.last_advance_counts();
+        submissions += counts.submissions as u64;
+        waits += counts.host_waits as u64;
+    }
+    // One wait at the end, so the wall clock covers the work and not only its submission.
+    let gpu_seconds = if gpu_timed { sim.take_gpu_seconds()? } else { None };
+    sim.diagnostics()?;
+    let wall = start.elapsed().as_secs_f64();
+    if submissions > 0 {
+        waits += 1;
+    }
+    let finite = sim.read_state()?.non_finite_count() == 0;
+    let f = frames as f64;
+    let work = n as f64 * n as f64 * scene.substeps_per_frame() as f64 * f;
+    Ok(ThroughputRow {
+        backend: backend.name.to_string(),
+        adapter: sim.adapter_name(),
+        grid: n,
+        rule,
+        substeps: scene.substeps_per_frame(),
+        substep_dt: scene.substep_dt(),
+        frames,
+        gpu_ms_per_frame: gpu_seconds.map(|s| s * 1e3 / f),
+        cpu_ms_per_frame: host * 1e3 / f,
+        wall_ms_per_frame: wall * 1e3 / f,
+        vertex_substeps_per_s: work / gpu_seconds.unwrap_or(wall),
+        submissions_per_frame: submissions as f64 / f,
+        host_waits_per_frame: waits as f64 / f,
+        finite,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_row_of_the_benchmark_is_stable() {
+        for n in [32, 128, 512, 1024, 2048] {
+            for rule in [StepRule::Fixed(16), StepRule::Fixed(64), StepRule::Scaled] {
+                let scene = bench_scene(n, rule);
+                let margin = cloth_core::stability::stability_margin(&scene);
+                assert!(margin < 0.8, "{n}² {rule}: margin {margin}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_scaled_step_gives_the_classic_53_substeps_at_128() {
+        assert_eq!(bench_scene(128, StepRule::Scaled).substeps_per_frame(), 53);
+        assert_eq!(bench_scene(1024, StepRule::Fixed(64)).substeps_per_frame(), 64);
+        assert_eq!("scaled".parse::<StepRule>(), Ok(StepRule::Scaled));
+        assert_eq!("16".parse::<StepRule>(), Ok(StepRule::Fixed(16)));
+        assert!("0".parse::<StepRule>().is_err() && "fast".parse::<StepRule>().is_err());
+    }
+
+    #[test]
+    fn a_cpu_row_counts_the_work_and_no_device_traffic() {
+        let cpu = crate::find("cpu").unwrap();
+        let row = measure(&cpu, None, 16, StepRule::Fixed(4), 3).unwrap();
+        assert_eq!((row.grid, row.substeps, row.frames), (16, 4, 3));
+        assert!(row.finite && row.gpu_ms_per_frame.is_none());
+        assert_eq!((row.submissions_per_frame, row.host_waits_per_frame), (0.0, 0.0));
+        assert!(row.vertex_substeps_per_s > 0.0 && row.wall_ms_per_frame >= row.cpu_ms_per_frame * 0.5);
+    }
+}
