@@ -21,20 +21,66 @@ layout(constant_id = 101) const uint STAGE = 0u;
 #include "layout.glsl"
 #include "forces.glsl"
 
-layout(set = 0, binding = 2, std430) readonly buffer SpringRanges { SpringRange spring_ranges[]; };
-layout(set = 0, binding = 3, std430) readonly buffer SpringEnds { SpringEnd spring_ends[]; };
-layout(set = 0, binding = 4, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, 0 pinned
-layout(set = 0, binding = 5, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };
-layout(set = 0, binding = 6, std430) buffer PositionsOut { vec4 positions_out[]; };
-layout(set = 0, binding = 7, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
+// No spring list: the springs are computed from the grid (add_stencil_springs).
+layout(set = 0, binding = 2, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, 0 pinned
+layout(set = 0, binding = 3, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };
+layout(set = 0, binding = 4, std430) buffer PositionsOut { vec4 positions_out[]; };
+layout(set = 0, binding = 5, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
 // Deepest penetration so far, m, as the bits of a non-negative float (their order as uints is
 // their order as floats, so atomicMax on uint is max on float).
-layout(set = 0, binding = 8, std430) buffer MaxPenetration { uint max_penetration_bits; };
+layout(set = 0, binding = 6, std430) buffer MaxPenetration { uint max_penetration_bits; };
 // RK4 only (a 64-byte placeholder otherwise): per vertex, the substep's start x and v and the
 // running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
-layout(set = 0, binding = 9, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
+layout(set = 0, binding = 7, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
 
 #include "grid.glsl"
+
+// Adds to `force` the spring from vertex (i, j) to its grid neighbour (i + di, j + dj), if that
+// neighbour exists: Hooke plus damping, with the kind's k and c_d and the given rest length.
+void add_spring(inout vec3 force, int i, int j, int di, int dj, uint kind, float rest_length, vec3 x, vec3 v) {
+    int ni = i + di;
+    int nj = j + dj;
+    if (ni < 0 || nj < 0 || ni >= int(params.grid_nx) || nj >= int(params.grid_ny)) {
+        return;
+    }
+    uint other = uint(nj) * params.grid_nx + uint(ni);
+    float damping = 0.0;
+    if (EFFECT_SPRING_DAMPING) {
+        damping = params.damping[kind];
+    }
+    force += spring_force(x, positions_in[other].xyz, v, velocities_in[other].xyz,
+                          rest_length, params.stiffness[kind], damping);
+}
+
+// The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the
+// grid (no spring list is read; rest lengths from params.rest_lengths). They are added in the
+// order of the CPU reference's per-vertex spring list (cloth_core::model::Adjacency), so the sums
+// round alike: kind by kind, and within a kind the springs from lower-indexed vertices first:
+// structural (0,-1) (-1,0) (+1,0) (0,+1); shear (-1,-1) (+1,-1) (+1,+1) (-1,+1); bend (0,-2)
+// (-2,0) (+2,0) (0,+2).
+void add_stencil_springs(inout vec3 force, uint index, vec3 x, vec3 v) {
+    int i = int(index % params.grid_nx);
+    int j = int(index / params.grid_nx);
+    vec4 rest = params.rest_lengths;
+    if (EFFECT_STRUCTURAL) {
+        add_spring(force, i, j, 0, -1, 0u, rest.y, x, v);
+        add_spring(force, i, j, -1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, 1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, 0, 1, 0u, rest.y, x, v);
+    }
+    if (EFFECT_SHEAR) {
+        add_spring(force, i, j, -1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, 1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, 1, 1, 1u, rest.z, x, v);
+        add_spring(force, i, j, -1, 1, 1u, rest.z, x, v);
+    }
+    if (EFFECT_BEND) {
+        add_spring(force, i, j, 0, -2, 2u, 2.0 * rest.y, x, v);
+        add_spring(force, i, j, -2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, 2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, 0, 2, 2u, 2.0 * rest.y, x, v);
+    }
+}
 
 void main() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
@@ -73,19 +119,7 @@ void main() {
             force += gravity_force(mass, params.gravity.xyz);
         }
         if (ANY_SPRINGS) {
-            SpringRange range = spring_ranges[i];
-            for (uint e = range.first; e < range.first + range.count; e++) {
-                SpringEnd end_ = spring_ends[e];
-                if (!kind_enabled(end_.kind)) {
-                    continue;
-                }
-                float damping = 0.0;
-                if (EFFECT_SPRING_DAMPING) {
-                    damping = params.damping[end_.kind];
-                }
-                force += spring_force(x, positions_in[end_.other].xyz, v, velocities_in[end_.other].xyz,
-                                      end_.rest_length, params.stiffness[end_.kind], damping);
-            }
+            add_stencil_springs(force, i, x, v);
         }
         if (EFFECT_AIR_DRAG) {
             force += air_drag_force(mass, params.air_drag, v);

@@ -2,7 +2,7 @@
 // (checked by crates/cloth-vulkano/tests/layout.rs), with the two bindings all kernels share
 // (0: parameters, 1: spheres). Each kernel declares its other bindings.
 
-// cloth_core::layout::GpuSimParams (144 bytes, std140).
+// cloth_core::layout::GpuSimParams (160 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gravity;       // m/s² (xyz)
     vec4 stiffness;     // N/m by spring kind: structural, shear, bend
@@ -19,6 +19,7 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gust;          // x: relative amplitude, y: angular frequency, rad/s
     vec4 pin_velocity;  // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
     vec4 pin_amplitude; // pins' oscillation amplitude, m (xyz)
+    vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
 } params;
 
 // cloth_core::layout::GpuSphere (64 bytes).
@@ -33,20 +34,6 @@ struct Sphere {
     float omega;        // angular frequency of the oscillation, rad/s
     vec3 amplitude;     // amplitude of the oscillation, m
     float pad2;
-};
-
-// cloth_core::layout::GpuSpringRange (8 bytes).
-struct SpringRange {
-    uint first;
-    uint count;
-};
-
-// cloth_core::layout::GpuSpringEnd (16 bytes).
-struct SpringEnd {
-    uint other;
-    uint kind;
-    float rest_length;  // m
-    uint pad;
 };
 
 // cloth_core::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.

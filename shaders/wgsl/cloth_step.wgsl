@@ -14,18 +14,65 @@ override STAGE: u32 = 0u;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
 @group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
-@group(0) @binding(2) var<storage, read> spring_ranges: array<SpringRange>;
-@group(0) @binding(3) var<storage, read> spring_ends: array<SpringEnd>;
-@group(0) @binding(4) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
-@group(0) @binding(5) var<storage, read> velocities_in: array<vec4<f32>>;
-@group(0) @binding(6) var<storage, read_write> positions_out: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read_write> velocities_out: array<vec4<f32>>;
+// No spring list: the springs are computed from the grid (add_stencil_springs).
+@group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
+@group(0) @binding(3) var<storage, read> velocities_in: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> positions_out: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> velocities_out: array<vec4<f32>>;
 // Deepest penetration so far, m, as the bits of a non-negative f32 (whose bit patterns order
 // like the numbers, so atomicMax on u32 is max on f32).
-@group(0) @binding(8) var<storage, read_write> max_penetration_bits: atomic<u32>;
+@group(0) @binding(6) var<storage, read_write> max_penetration_bits: atomic<u32>;
 // RK4 only (a 64-byte placeholder otherwise): per vertex, the substep's start x and v and the
 // running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
-@group(0) @binding(9) var<storage, read_write> rk4_scratch: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> rk4_scratch: array<vec4<f32>>;
+
+// Adds to `force` the spring from vertex (i, j) to its grid neighbour (i + di, j + dj), if that
+// neighbour exists: Hooke plus damping, with the kind's k and c_d and the given rest length.
+fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, di: i32, dj: i32, kind: u32, rest_length: f32,
+              x: vec3<f32>, v: vec3<f32>) {
+    let ni = i + di;
+    let nj = j + dj;
+    if (ni < 0 || nj < 0 || ni >= i32(params.grid_nx) || nj >= i32(params.grid_ny)) {
+        return;
+    }
+    let other = u32(nj) * params.grid_nx + u32(ni);
+    var damping = 0.0;
+    if (EFFECT_SPRING_DAMPING) {
+        damping = params.damping[kind];
+    }
+    *force += spring_force(x, positions_in[other].xyz, v, velocities_in[other].xyz,
+                           rest_length, params.stiffness[kind], damping);
+}
+
+// The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the
+// grid (no spring list is read; rest lengths from params.rest_lengths). They are added in the
+// order of the CPU reference's per-vertex spring list (cloth_core::model::Adjacency), so the sums
+// round alike: kind by kind, and within a kind the springs from lower-indexed vertices first:
+// structural (0,−1) (−1,0) (+1,0) (0,+1); shear (−1,−1) (+1,−1) (+1,+1) (−1,+1); bend (0,−2)
+// (−2,0) (+2,0) (0,+2).
+fn add_stencil_springs(force: ptr<function, vec3<f32>>, index: u32, x: vec3<f32>, v: vec3<f32>) {
+    let i = i32(index % params.grid_nx);
+    let j = i32(index / params.grid_nx);
+    let rest = params.rest_lengths;
+    if (EFFECT_STRUCTURAL) {
+        add_spring(force, i, j, 0, -1, 0u, rest.y, x, v);
+        add_spring(force, i, j, -1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, 1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, 0, 1, 0u, rest.y, x, v);
+    }
+    if (EFFECT_SHEAR) {
+        add_spring(force, i, j, -1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, 1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, 1, 1, 1u, rest.z, x, v);
+        add_spring(force, i, j, -1, 1, 1u, rest.z, x, v);
+    }
+    if (EFFECT_BEND) {
+        add_spring(force, i, j, 0, -2, 2u, 2.0 * rest.y, x, v);
+        add_spring(force, i, j, -2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, 2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, 0, 2, 2u, 2.0 * rest.y, x, v);
+    }
+}
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -70,19 +117,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             force += gravity_force(mass, params.gravity.xyz);
         }
         if (ANY_SPRINGS) {
-            let range = spring_ranges[i];
-            for (var e = range.first; e < range.first + range.count; e++) {
-                let end = spring_ends[e];
-                if (!kind_enabled(end.kind)) {
-                    continue;
-                }
-                var damping = 0.0;
-                if (EFFECT_SPRING_DAMPING) {
-                    damping = params.damping[end.kind];
-                }
-                force += spring_force(x, positions_in[end.other].xyz, v, velocities_in[end.other].xyz,
-                                      end.rest_length, params.stiffness[end.kind], damping);
-            }
+            add_stencil_springs(&force, i, x, v);
         }
         if (EFFECT_AIR_DRAG) {
             force += air_drag_force(mass, params.air_drag, v);

@@ -24,7 +24,7 @@ override WORKGROUP_SIZE: u32 = 64u;
 // Any spring kind at all (one constant, so the branch on it is a constant too).
 override ANY_SPRINGS: bool = EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND;
 
-// cloth_core::layout::GpuSimParams (144 bytes).
+// cloth_core::layout::GpuSimParams (160 bytes).
 struct SimParams {
     gravity: vec4<f32>,      // m/s² (xyz)
     stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
@@ -41,6 +41,7 @@ struct SimParams {
     gust: vec4<f32>,         // x: relative amplitude, y: angular frequency, rad/s
     pin_velocity: vec4<f32>, // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
     pin_amplitude: vec4<f32>,// pins' oscillation amplitude, m (xyz)
+    rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
 }
 
 // cloth_core::layout::GpuSphere (64 bytes).
@@ -55,20 +56,6 @@ struct Sphere {
     omega: f32,              // angular frequency of the oscillation, rad/s
     amplitude: vec3<f32>,    // amplitude of the oscillation, m
     pad2: f32,
-}
-
-// cloth_core::layout::GpuSpringRange (8 bytes).
-struct SpringRange {
-    first: u32,
-    count: u32,
-}
-
-// cloth_core::layout::GpuSpringEnd (16 bytes).
-struct SpringEnd {
-    other: u32,
-    kind: u32,
-    rest_length: f32,        // m
-    pad: u32,
 }
 
 // cloth_core::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.

@@ -72,8 +72,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
         match backends::copy_bandwidth(args.adapter.as_deref()) {
             Ok(b) => {
                 println!(
-                    "device copy bandwidth: {:.3} TB/s ({} copies of {} MiB, bytes read + written, on {})",
+                    "device copy bandwidth: {:.3} TB/s ({:.3} by a vec4 copy kernel, {:.3} by the copy command; {} \
+                     copies of {} MiB, bytes read + written, on {})",
                     b.bytes_per_s / 1e12,
+                    b.kernel_bytes_per_s / 1e12,
+                    b.copy_command_bytes_per_s / 1e12,
                     b.copies,
                     b.copy_bytes >> 20,
                     b.adapter

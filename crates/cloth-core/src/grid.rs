@@ -15,6 +15,8 @@ pub struct Grid {
     pub positions: Vec<[f64; 3]>,
     /// `true` for pinned vertices.
     pub pinned: Vec<bool>,
+    /// Distance between grid neighbours along u and along v, m.
+    pub spacing: [f64; 2],
 }
 
 impl Grid {
@@ -44,7 +46,8 @@ impl Grid {
                 }
             }
         }
-        Self { nx, ny, positions, pinned }
+        let spacing = [su / (nx - 1).max(1) as f64, sv / (ny - 1).max(1) as f64];
+        Self { nx, ny, positions, pinned, spacing }
     }
 
     /// Number of vertices.

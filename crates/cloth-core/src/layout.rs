@@ -10,8 +10,6 @@
 //! |---|---|---|
 //! | positions (×2, ping-pong) | `[f32; 4]`: xyz m, w = 1 free / 0 pinned | vertices |
 //! | velocities (×2, ping-pong) | `[f32; 4]`: xyz m/s, w = the state's time, s | vertices |
-//! | spring ranges | [`GpuSpringRange`] | vertices |
-//! | spring ends | [`GpuSpringEnd`] | 2 × springs |
 //! | spheres | [`GpuSphere`] | spheres (at least 1 slot) |
 //!
 //! Velocities carry the time of their state in `w` (s, f32): every kernel reads the time of the
@@ -79,6 +77,11 @@ pub struct GpuSimParams {
     pub pin_velocity: [f32; 4],
     /// Pin motion: amplitude of the oscillation, m (xyz; w unused).
     pub pin_amplitude: [f32; 4],
+    /// Spring rest lengths, m: `x` structural along u (`Δu`), `y` structural along v (`Δv`), `z`
+    /// shear (`√(Δu² + Δv²)`); the bend springs' are `2Δu` and `2Δv` (exactly twice, in `f32`
+    /// too). The force kernels compute the springs from the grid with these (a stencil), as
+    /// `springs::rest_length` defines them.
+    pub rest_lengths: [f32; 4],
 }
 
 /// One sphere collider (64 bytes).
@@ -105,30 +108,6 @@ pub struct GpuSphere {
     pub amplitude: [f32; 3],
     /// Padding to 64 bytes.
     pub _pad2: f32,
-}
-
-/// A vertex's slice of the spring-end buffer.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuSpringRange {
-    /// Index of the first end.
-    pub first: u32,
-    /// Number of ends.
-    pub count: u32,
-}
-
-/// One spring end (16 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuSpringEnd {
-    /// The vertex at the other end.
-    pub other: u32,
-    /// `SpringKind as u32`.
-    pub kind: u32,
-    /// Rest length, m.
-    pub rest_length: f32,
-    /// Padding to 16 bytes.
-    pub _pad: u32,
 }
 
 /// One spring as an XPBD constraint between vertices `a < b` (16 bytes).
@@ -203,6 +182,12 @@ impl GpuSimParams {
             gust: [f(w.gust_amplitude), f(2.0 * std::f64::consts::PI / w.gust_period), 0.0, 0.0],
             pin_velocity: [f(pins.velocity[0]), f(pins.velocity[1]), f(pins.velocity[2]), f(pins.angular_frequency())],
             pin_amplitude: [f(pins.amplitude[0]), f(pins.amplitude[1]), f(pins.amplitude[2]), 0.0],
+            rest_lengths: {
+                let spacing =
+                    [scene.cloth.size[0] / (nx.max(2) - 1) as f64, scene.cloth.size[1] / (ny.max(2) - 1) as f64];
+                let rest = |di, dj| f(crate::springs::rest_length(spacing, di, dj));
+                [rest(1, 0), rest(0, 1), rest(1, 1), 0.0]
+            },
         }
     }
 
@@ -223,10 +208,6 @@ pub struct GpuBuffers {
     pub positions: Vec<[f32; 4]>,
     /// Initial velocities.
     pub velocities: Vec<[f32; 4]>,
-    /// Per-vertex spring ranges.
-    pub spring_ranges: Vec<GpuSpringRange>,
-    /// Spring ends (at least one element, so the buffer is never empty).
-    pub spring_ends: Vec<GpuSpringEnd>,
     /// Spheres (at least one element, so the buffer is never empty; `params.sphere_count` says
     /// how many are real).
     pub spheres: Vec<GpuSphere>,
@@ -255,17 +236,6 @@ impl GpuBuffers {
             .iter()
             .map(|&pinned| if pinned { [0.0; 4] } else { [v0[0] as f32, v0[1] as f32, v0[2] as f32, 0.0] })
             .collect();
-        let spring_ranges =
-            model.adjacency.first.windows(2).map(|w| GpuSpringRange { first: w[0], count: w[1] - w[0] }).collect();
-        let mut spring_ends: Vec<GpuSpringEnd> = model
-            .adjacency
-            .ends
-            .iter()
-            .map(|e| GpuSpringEnd { other: e.other, kind: e.kind as u32, rest_length: e.rest_length as f32, _pad: 0 })
-            .collect();
-        if spring_ends.is_empty() {
-            spring_ends.push(GpuSpringEnd::default());
-        }
         let mut spheres: Vec<GpuSphere> = if scene.effects.contains(Effect::SphereContact) {
             scene.spheres.iter().map(GpuSphere::from_spec).collect()
         } else {
@@ -276,16 +246,7 @@ impl GpuBuffers {
         }
         let (constraints, color_ranges) =
             if scene.integrator == Integrator::Xpbd { xpbd_constraints(model) } else { (Vec::new(), Vec::new()) };
-        Self {
-            params: GpuSimParams::from_scene(scene),
-            positions,
-            velocities,
-            spring_ranges,
-            spring_ends,
-            spheres,
-            constraints,
-            color_ranges,
-        }
+        Self { params: GpuSimParams::from_scene(scene), positions, velocities, spheres, constraints, color_ranges }
     }
 
     /// XPBD: the range of colour `color` in iteration `iteration`, as stored in `color_ranges`.
@@ -305,8 +266,6 @@ impl GpuBuffers {
         };
         2 * b(self.positions.len(), 16)
             + 2 * b(self.velocities.len(), 16)
-            + b(self.spring_ranges.len(), 8)
-            + b(self.spring_ends.len(), 16)
             + b(self.spheres.len(), 64)
             + size_of::<GpuSimParams>() as u64
             + xpbd
@@ -396,6 +355,7 @@ pub fn struct_layouts() -> Vec<StructLayout> {
                 ("gust", offset_of!(GpuSimParams, gust)),
                 ("pin_velocity", offset_of!(GpuSimParams, pin_velocity)),
                 ("pin_amplitude", offset_of!(GpuSimParams, pin_amplitude)),
+                ("rest_lengths", offset_of!(GpuSimParams, rest_lengths)),
             ],
         },
         StructLayout {
@@ -413,11 +373,6 @@ pub fn struct_layouts() -> Vec<StructLayout> {
                 ("amplitude", offset_of!(GpuSphere, amplitude)),
                 ("pad2", offset_of!(GpuSphere, _pad2)),
             ],
-        },
-        StructLayout {
-            shader_name: "SpringRange",
-            size: size_of::<GpuSpringRange>(),
-            fields: vec![("first", offset_of!(GpuSpringRange, first)), ("count", offset_of!(GpuSpringRange, count))],
         },
         StructLayout {
             shader_name: "Constraint",
@@ -439,16 +394,6 @@ pub fn struct_layouts() -> Vec<StructLayout> {
                 ("pad", offset_of!(GpuColorRange, _pad)),
             ],
         },
-        StructLayout {
-            shader_name: "SpringEnd",
-            size: size_of::<GpuSpringEnd>(),
-            fields: vec![
-                ("other", offset_of!(GpuSpringEnd, other)),
-                ("kind", offset_of!(GpuSpringEnd, kind)),
-                ("rest_length", offset_of!(GpuSpringEnd, rest_length)),
-                ("pad", offset_of!(GpuSpringEnd, _pad)),
-            ],
-        },
     ]
 }
 
@@ -456,7 +401,7 @@ pub fn struct_layouts() -> Vec<StructLayout> {
 /// anything (so that a huge grid can be refused before allocation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MemoryEstimate {
-    /// Bytes of the largest single buffer (the spring ends).
+    /// Bytes of the largest single buffer (positions, RK4's scratch or XPBD's constraints).
     pub largest_buffer_bytes: u64,
     /// Bytes of all GPU buffers together.
     pub device_bytes: u64,
@@ -478,18 +423,21 @@ impl MemoryEstimate {
             .map(|k| k.count_in_grid(nx as u64, ny as u64) as u128)
             .sum();
         let ends = (2 * springs).max(1);
-        let xpbd = if scene.integrator == Integrator::Xpbd {
-            20 * springs.max(1) + 4 * vertices + COLOR_RANGE_BUFFER_BYTES as u128
+        // The force kernels compute the springs from the grid (no spring list on the device);
+        // RK4 keeps four vec4s per vertex of scratch; XPBD a constraint (16 B) and a multiplier
+        // (4 B) per spring, a normal correction per vertex and the colour ranges.
+        let rk4 = if scene.integrator == Integrator::RungeKutta4 { 64 * vertices } else { 0 };
+        let (xpbd, constraints) = if scene.integrator == Integrator::Xpbd {
+            (20 * springs.max(1) + 4 * vertices + COLOR_RANGE_BUFFER_BYTES as u128, 16 * springs.max(1))
         } else {
-            0
+            (0, 0)
         };
-        let device_bytes =
-            4 * 16 * vertices + 8 * vertices + 16 * ends + 64 * scene.spheres.len().max(1) as u128 + 144 + xpbd;
+        let device_bytes = 4 * 16 * vertices + rk4 + 64 * scene.spheres.len().max(1) as u128 + 160 + xpbd;
         // Host: f64 positions + pins, the spring list (32 B each) and f64 lists (24 B each).
         let host_bytes = vertices * (24 + 1 + 4) + springs * 32 + ends * 24 + device_bytes;
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
         Self {
-            largest_buffer_bytes: clamp((16 * ends).max(16 * vertices)),
+            largest_buffer_bytes: clamp((16 * vertices).max(rk4).max(constraints)),
             device_bytes: clamp(device_bytes),
             host_bytes: clamp(host_bytes),
         }
@@ -521,11 +469,9 @@ mod tests {
 
     #[test]
     fn layouts_have_the_sizes_the_shaders_expect() {
-        assert_eq!(size_of::<GpuSimParams>(), 144);
+        assert_eq!(size_of::<GpuSimParams>(), 160);
         assert_eq!(size_of::<GpuSimParams>() % 16, 0, "uniform blocks are multiples of 16 bytes");
         assert_eq!(size_of::<GpuSphere>(), 64);
-        assert_eq!(size_of::<GpuSpringRange>(), 8);
-        assert_eq!(size_of::<GpuSpringEnd>(), 16);
         assert_eq!(size_of::<GpuConstraint>(), 16);
         assert_eq!(size_of::<GpuColorRange>(), 16);
     }

@@ -4,7 +4,8 @@
 //! * shear: both diagonals of every cell: `2(nx-1)(ny-1)` springs;
 //! * bend: `(i,j)–(i+2,j)` and `(i,j)–(i,j+2)`: `nx(ny-2) + ny(nx-2)` springs.
 //!
-//! Rest lengths are the distances in the initial grid. A spring kind whose effect the scene
+//! Rest lengths are the distances in the initial grid, computed from the grid spacing
+//! ([`rest_length`]). A spring kind whose effect the scene
 //! leaves out is not generated at all.
 
 use serde::{Deserialize, Serialize};
@@ -100,17 +101,28 @@ pub fn generate(grid: &Grid, effects: EffectSet) -> Vec<Spring> {
                     }
                     let a = (j * nx + i) as u32;
                     let b = (j2 * nx + i2) as u32;
-                    springs.push(Spring {
-                        a,
-                        b,
-                        kind,
-                        rest_length: distance(grid.positions[a as usize], grid.positions[b as usize]),
-                    });
+                    springs.push(Spring { a, b, kind, rest_length: rest_length(grid.spacing, di, dj) });
                 }
             }
         }
     }
     springs
+}
+
+/// Rest length of a spring spanning `(di, dj)` grid steps, m: `√((di·Δu)² + (dj·Δv)²)` with
+/// `spacing = [Δu, Δv]`. The initial distance in exact arithmetic; computed from the spacing so
+/// that every spring of a kind and direction has the same rest length, which is what lets the
+/// GPU kernels compute the springs from the grid (a stencil) instead of reading a spring list.
+/// Axis-aligned springs get `|di|·Δu` or `|dj|·Δv` exactly.
+pub fn rest_length(spacing: [f64; 2], di: i64, dj: i64) -> f64 {
+    let (u, v) = (di.unsigned_abs() as f64 * spacing[0], dj.unsigned_abs() as f64 * spacing[1]);
+    if dj == 0 {
+        u
+    } else if di == 0 {
+        v
+    } else {
+        (u * u + v * v).sqrt()
+    }
 }
 
 /// Number of springs of each kind, `[structural, shear, bend]`.

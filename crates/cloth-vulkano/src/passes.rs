@@ -173,8 +173,6 @@ pub(crate) fn plan(
     };
     match scene.integrator {
         Integrator::SemiImplicitEuler | Integrator::VelocityVerlet | Integrator::RungeKutta4 => {
-            let ranges = buffer_with(storage, bytemuck::cast_slice(&data.spring_ranges).to_vec())?;
-            let ends = buffer_with(storage, bytemuck::cast_slice(&data.spring_ends).to_vec())?;
             let rk4 = scene.integrator == Integrator::RungeKutta4;
             // RK4's per-vertex start state and sums (a placeholder for the other integrators).
             let rk4_scratch = device_local(storage, if rk4 { 64 * data.positions.len() as u64 } else { 64 })?;
@@ -185,14 +183,12 @@ pub(crate) fn plan(
                     [
                         WriteDescriptorSet::buffer(0, state.params.clone()),
                         WriteDescriptorSet::buffer(1, state.spheres.clone()),
-                        WriteDescriptorSet::buffer(2, ranges.clone()),
-                        WriteDescriptorSet::buffer(3, ends.clone()),
-                        WriteDescriptorSet::buffer(4, x_in.clone()),
-                        WriteDescriptorSet::buffer(5, v_in.clone()),
-                        WriteDescriptorSet::buffer(6, x_out.clone()),
-                        WriteDescriptorSet::buffer(7, v_out.clone()),
-                        WriteDescriptorSet::buffer(8, state.max_penetration.clone()),
-                        WriteDescriptorSet::buffer(9, rk4_scratch.clone()),
+                        WriteDescriptorSet::buffer(2, x_in.clone()),
+                        WriteDescriptorSet::buffer(3, v_in.clone()),
+                        WriteDescriptorSet::buffer(4, x_out.clone()),
+                        WriteDescriptorSet::buffer(5, v_out.clone()),
+                        WriteDescriptorSet::buffer(6, state.max_penetration.clone()),
+                        WriteDescriptorSet::buffer(7, rk4_scratch.clone()),
                     ],
                 )
             };

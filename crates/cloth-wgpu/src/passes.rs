@@ -180,9 +180,9 @@ pub(crate) fn plan(
     let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
     };
-    // Both kernels bind 9 storage buffers (the WebGPU default allows 8; every Vulkan device we
-    // know allows more, and the context requests what the adapter offers).
-    let storage_needed = 9;
+    // The force kernel binds 7 storage buffers, XPBD's 9 (the WebGPU default allows 8; every
+    // Vulkan device we know allows more, and the context requests what the adapter offers).
+    let storage_needed = if scene.integrator == Integrator::Xpbd { 9 } else { 7 };
     if device.limits().max_storage_buffers_per_shader_stage < storage_needed {
         return Err(SimError::Unsupported {
             backend: BACKEND_NAME,
@@ -199,8 +199,6 @@ pub(crate) fn plan(
     let name = ["A", "B"];
     match scene.integrator {
         Integrator::SemiImplicitEuler | Integrator::VelocityVerlet | Integrator::RungeKutta4 => {
-            let ranges = init("cloth spring ranges", bytemuck::cast_slice(&data.spring_ranges), storage);
-            let ends = init("cloth spring ends", bytemuck::cast_slice(&data.spring_ends), storage);
             let rk4 = scene.integrator == Integrator::RungeKutta4;
             // RK4's per-vertex start state and sums (a placeholder for the other integrators).
             let scratch_bytes = if rk4 { 64 * data.positions.len() } else { 64 };
@@ -214,8 +212,6 @@ pub(crate) fn plan(
                 &[
                     Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
                     Binding::Storage { read_only: true },  // spheres
-                    Binding::Storage { read_only: true },  // spring ranges
-                    Binding::Storage { read_only: true },  // spring ends
                     Binding::Storage { read_only: true },  // positions in
                     Binding::Storage { read_only: true },  // velocities in
                     Binding::Storage { read_only: false }, // positions out
@@ -227,18 +223,7 @@ pub(crate) fn plan(
             let group = |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4]| {
                 kernel.bind_group(
                     &label,
-                    &[
-                        &state.params,
-                        &state.spheres,
-                        &ranges,
-                        &ends,
-                        x_in,
-                        v_in,
-                        x_out,
-                        v_out,
-                        &state.max_penetration,
-                        &rk4_scratch,
-                    ],
+                    &[&state.params, &state.spheres, x_in, v_in, x_out, v_out, &state.max_penetration, &rk4_scratch],
                 )
             };
             let pass = |pipeline: usize, groups: [wgpu::BindGroup; 2]| Pass {

@@ -361,14 +361,15 @@ mod tests {
     #[test]
     fn a_grid_beyond_the_binding_limit_is_refused_with_the_numbers() {
         let mut scene = Scene::default();
-        scene.cloth.resolution = [1024, 1024];
+        // The largest buffer of a force-based scene is a position buffer, 16 bytes a vertex.
+        scene.cloth.resolution = [4096, 4096];
         let limits = wgpu::Limits::default(); // 128 MiB bindings
         let err = check_limits(&scene, &limits).unwrap_err().to_string();
-        assert!(err.contains("grid 1024x1024 needs 200998976 bytes"), "{err}");
+        assert!(err.contains("grid 4096x4096 needs 268435456 bytes"), "{err}");
         assert!(err.contains("the device allows 134217728"), "{err}");
         assert!(err.contains("use a smaller grid"), "{err}");
-        assert!(err.contains("the largest square one that fits is 836x836"), "{err}");
-        scene.cloth.resolution = [512, 512];
+        assert!(err.contains("the largest square one that fits is 2896x2896"), "{err}");
+        scene.cloth.resolution = [2048, 2048];
         assert!(check_limits(&scene, &limits).is_ok());
     }
 }
