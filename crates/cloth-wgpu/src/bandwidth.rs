@@ -60,7 +60,7 @@ pub fn copy_bandwidth(choice: &AdapterChoice) -> Result<CopyBandwidth, SimError>
     let context = GpuContext::new(choice)?;
     let (device, queue) = (&context.device, &context.queue);
     let limits = device.limits();
-    let bytes = (512u64 << 20).min(limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size) / 16 * 16;
+    let bytes = (512u64 << 20).min(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size) / 16 * 16;
     let device_error = |reason: String| SimError::Device { backend: BACKEND_NAME, reason };
     let make = |label: &str| {
         device.create_buffer(&wgpu::BufferDescriptor {
