@@ -463,6 +463,27 @@ pub fn largest_square_grid(scene: &Scene, limit_bytes: u64) -> u32 {
     lo
 }
 
+/// Invocations per workgroup of every GPU kernel, unless `CLOTH_WORKGROUP_SIZE` says otherwise.
+pub const DEFAULT_WORKGROUP_SIZE: u32 = 64;
+
+/// Invocations per workgroup of every GPU kernel: [`DEFAULT_WORKGROUP_SIZE`], or the value of the
+/// environment variable `CLOTH_WORKGROUP_SIZE` (a tuning knob for benchmarks: both backends pass
+/// it to their kernels as a pipeline constant).
+///
+/// # Errors
+/// The variable and its value when it is not a power of two from 32 to 1024.
+pub fn workgroup_size() -> Result<u32, String> {
+    match std::env::var("CLOTH_WORKGROUP_SIZE") {
+        Ok(text) if !text.trim().is_empty() => text
+            .trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| n.is_power_of_two() && (32..=1024).contains(n))
+            .ok_or_else(|| format!("the workgroup size CLOTH_WORKGROUP_SIZE={text}")),
+        _ => Ok(DEFAULT_WORKGROUP_SIZE),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

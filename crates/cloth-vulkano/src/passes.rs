@@ -29,8 +29,14 @@ use vulkano::shader::{ShaderModule, ShaderModuleCreateInfo, SpecializationConsta
 
 use crate::{BACKEND_NAME, STEP_SPIRV, XPBD_SPIRV};
 
-/// Invocations per workgroup (specialization constant [`WORKGROUP_SIZE_CONSTANT_ID`]).
-pub const WORKGROUP_SIZE: u32 = 64;
+/// Invocations per workgroup by default (specialization constant [`WORKGROUP_SIZE_CONSTANT_ID`];
+/// see `cloth_core::layout::workgroup_size` for the `CLOTH_WORKGROUP_SIZE` knob).
+pub const WORKGROUP_SIZE: u32 = cloth_core::layout::DEFAULT_WORKGROUP_SIZE;
+
+/// The workgroup size in use (checked when the simulator is created).
+pub(crate) fn workgroup_size() -> u32 {
+    cloth_core::layout::workgroup_size().unwrap_or(WORKGROUP_SIZE)
+}
 /// Specialization-constant id of the workgroup size; ids `0..` are the effects, in
 /// `cloth_core::Effect::ALL` order.
 pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 100;
@@ -78,7 +84,7 @@ fn device_error(reason: impl std::fmt::Display) -> SimError {
 
 /// Workgroups for `items` invocations: along x up to the device's limit, the rest along y.
 pub(crate) fn workgroups(items: u32, max_x: u32) -> [u32; 3] {
-    let groups = items.div_ceil(WORKGROUP_SIZE).max(1);
+    let groups = items.div_ceil(workgroup_size()).max(1);
     let max_x = max_x.max(1);
     if groups <= max_x { [groups, 1, 1] } else { [max_x, groups.div_ceil(max_x), 1] }
 }
@@ -104,7 +110,7 @@ impl Kernel {
             .into_iter()
             .enumerate()
             .map(|(id, (_, on))| (id as u32, SpecializationConstant::Bool(on)))
-            .chain([(WORKGROUP_SIZE_CONSTANT_ID, SpecializationConstant::U32(WORKGROUP_SIZE))])
+            .chain([(WORKGROUP_SIZE_CONSTANT_ID, SpecializationConstant::U32(workgroup_size()))])
             .collect();
         let entry = module.entry_point("main").ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
         let mut info = PipelineDescriptorSetLayoutCreateInfo::from_stages([&PipelineShaderStageCreateInfo::new(entry)]);

@@ -18,8 +18,14 @@ use wgpu::util::DeviceExt;
 
 use crate::{BACKEND_NAME, STEP_SHADER, XPBD_SHADER};
 
-/// Invocations per workgroup of every kernel (the WGSL `WORKGROUP_SIZE` override).
-pub const WORKGROUP_SIZE: u32 = 64;
+/// Invocations per workgroup of every kernel by default (the WGSL `WORKGROUP_SIZE` override; see
+/// `cloth_core::layout::workgroup_size` for the `CLOTH_WORKGROUP_SIZE` knob).
+pub const WORKGROUP_SIZE: u32 = cloth_core::layout::DEFAULT_WORKGROUP_SIZE;
+
+/// The workgroup size in use (checked when the simulator is created).
+pub(crate) fn workgroup_size() -> u32 {
+    cloth_core::layout::workgroup_size().unwrap_or(WORKGROUP_SIZE)
+}
 
 /// The buffers every integrator's passes bind.
 pub(crate) struct StateBuffers {
@@ -84,7 +90,7 @@ fn bind_group_layout(device: &wgpu::Device, label: &str, bindings: &[Binding]) -
 
 /// Workgroups for `items` invocations: along x up to the device's limit, the rest along y.
 pub(crate) fn workgroups(items: u32, max_x: u32) -> (u32, u32) {
-    let groups = items.div_ceil(WORKGROUP_SIZE).max(1);
+    let groups = items.div_ceil(workgroup_size()).max(1);
     let max_x = max_x.max(1);
     if groups <= max_x { (groups, 1) } else { (max_x, groups.div_ceil(max_x)) }
 }
@@ -131,7 +137,7 @@ impl<'a> Kernel<'a> {
             .into_iter()
             .map(|(name, on)| (name, if on { 1.0 } else { 0.0 }))
             .collect();
-        constants.push(("WORKGROUP_SIZE", WORKGROUP_SIZE as f64));
+        constants.push(("WORKGROUP_SIZE", workgroup_size() as f64));
         constants.push((stage.0, stage.1 as f64));
         self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(label),
