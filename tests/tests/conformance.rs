@@ -602,6 +602,7 @@ fn state_handover_round_trips_exactly(backend: &Backend) {
 /// vulkano alike; both backends now share one instance per process.
 #[test]
 fn thirty_gpu_simulators_in_one_process_all_start() {
+    let _gpu = cloth_conformance::gpu_lock();
     let scene = with_grid(scene("drape.ron"), [8, 8]);
     for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
         for _ in 0..30 {
@@ -662,6 +663,7 @@ conformance! {
 /// The same scene on the two GPU backends agrees within the f32 tolerance after a few frames.
 #[test]
 fn wgpu_and_vulkano_agree() {
+    let _gpu = cloth_conformance::gpu_lock();
     for (name, scene, frames) in short_horizon_scenes() {
         let Some((a, _)) = run(&cloth_conformance::WGPU, &scene, frames) else { return };
         let Some((b, _)) = run(&cloth_conformance::VULKANO, &scene, frames) else { return };
@@ -674,6 +676,7 @@ fn wgpu_and_vulkano_agree() {
 /// the wall time around it, and the CPU backends say they have no GPU timer.
 #[test]
 fn gpu_timing_measures_the_advances_when_on() {
+    let _gpu = cloth_conformance::gpu_lock();
     let scene = with_grid(scene("drape.ron"), [16, 16]);
     for backend in cloth_conformance::BACKENDS {
         let Some(mut sim) = create(backend, &scene) else { continue };

@@ -472,6 +472,7 @@ stability_suite! {
 /// limit is `maxStorageBufferRange`, 128 MiB, and the largest RK4 drape is 1448 × 1448.)
 #[test]
 fn the_largest_grid_runs_and_the_next_is_refused() {
+    let _gpu = cloth_conformance::gpu_lock();
     use cloth_core::SimError;
     use cloth_core::layout::largest_square_grid;
     let limits: [(&Backend, Option<u64>); 2] = [
