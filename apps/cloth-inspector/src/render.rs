@@ -441,8 +441,8 @@ impl ViewRenderer {
             },
             sphere_count: scene.spheres.len().min(16) as u32,
             _pad: [0; 3],
-            rest_du: (scene.cloth.size[0] / (nx.max(2) - 1) as f64) as f32,
-            rest_dv: (scene.cloth.size[1] / (ny.max(2) - 1) as f64) as f32,
+            rest_du: scene.cloth.spacing()[0] as f32,
+            rest_dv: scene.cloth.spacing()[1] as f32,
             speed_scale: 3.0,
             strain_scale: 0.05,
         };

@@ -46,8 +46,7 @@ impl Grid {
                 }
             }
         }
-        let spacing = [su / (nx - 1).max(1) as f64, sv / (ny - 1).max(1) as f64];
-        Self { nx, ny, positions, pinned, spacing }
+        Self { nx, ny, positions, pinned, spacing: spec.spacing() }
     }
 
     /// Number of vertices.

@@ -183,8 +183,7 @@ impl GpuSimParams {
             pin_velocity: [f(pins.velocity[0]), f(pins.velocity[1]), f(pins.velocity[2]), f(pins.angular_frequency())],
             pin_amplitude: [f(pins.amplitude[0]), f(pins.amplitude[1]), f(pins.amplitude[2]), 0.0],
             rest_lengths: {
-                let spacing =
-                    [scene.cloth.size[0] / (nx.max(2) - 1) as f64, scene.cloth.size[1] / (ny.max(2) - 1) as f64];
+                let spacing = scene.cloth.spacing();
                 let rest = |di, dj| f(crate::springs::rest_length(spacing, di, dj));
                 [rest(1, 0), rest(0, 1), rest(1, 1), 0.0]
             },
@@ -485,6 +484,19 @@ pub fn workgroup_size() -> Result<u32, String> {
             .ok_or_else(|| format!("the workgroup size CLOTH_WORKGROUP_SIZE={text}")),
         _ => Ok(DEFAULT_WORKGROUP_SIZE),
     }
+}
+
+/// [`workgroup_size`] as the error a GPU backend named `backend` returns when the knob is wrong.
+///
+/// # Errors
+/// [`SimError::Unsupported`](crate::error::SimError::Unsupported) naming the variable, its value
+/// and the fix.
+pub fn checked_workgroup_size(backend: &'static str) -> Result<u32, crate::error::SimError> {
+    workgroup_size().map_err(|what| crate::error::SimError::Unsupported {
+        backend,
+        what,
+        fix: format!("give it a power of two from 32 to 1024, or unset it for the default, {DEFAULT_WORKGROUP_SIZE}"),
+    })
 }
 
 #[cfg(test)]

@@ -92,6 +92,14 @@ pub struct ClothSpec {
     pub pin_motion: Motion,
 }
 
+impl ClothSpec {
+    /// Distance between grid neighbours along u and along v, m: `size / (resolution − 1)`.
+    pub fn spacing(&self) -> [f64; 2] {
+        let [nx, ny] = self.resolution;
+        [self.size[0] / (nx.max(2) - 1) as f64, self.size[1] / (ny.max(2) - 1) as f64]
+    }
+}
+
 impl Default for ClothSpec {
     fn default() -> Self {
         Self {

@@ -123,8 +123,8 @@ pub fn auto_target_substep(scene: &Scene) -> f64 {
         if speed <= 0.0 {
             return springs;
         }
-        let [nx, ny] = scene.cloth.resolution;
-        let cell = (scene.cloth.size[0] / (nx.max(2) - 1) as f64).min(scene.cloth.size[1] / (ny.max(2) - 1) as f64);
+        let [du, dv] = scene.cloth.spacing();
+        let cell = du.min(dv);
         return springs.min(XPBD_AUTO_SPHERE_CELLS * cell / speed);
     }
     stable_substep(scene) * Auto::SAFETY

@@ -72,14 +72,7 @@ impl VulkanoSimulator {
     /// the GPU objects fails.
     pub fn on_context(scene: &Scene, context: VulkanContext) -> Result<Self, SimError> {
         scene.validate()?;
-        cloth_core::layout::workgroup_size().map_err(|what| SimError::Unsupported {
-            backend: BACKEND_NAME,
-            what,
-            fix: format!(
-                "give it a power of two from 32 to 1024, or unset it for the default, {}",
-                cloth_core::layout::DEFAULT_WORKGROUP_SIZE
-            ),
-        })?;
+        cloth_core::layout::checked_workgroup_size(BACKEND_NAME)?;
         let device = context.device.clone();
         let properties = device.physical_device().properties();
         let limit = properties.max_storage_buffer_range as u64;

@@ -58,14 +58,7 @@ impl WgpuSimulator {
     pub fn on_device(scene: &Scene, context: GpuContext) -> Result<Self, SimError> {
         scene.validate()?;
         check_limits(scene, &context.device.limits())?;
-        cloth_core::layout::workgroup_size().map_err(|what| SimError::Unsupported {
-            backend: BACKEND_NAME,
-            what,
-            fix: format!(
-                "give it a power of two from 32 to 1024, or unset it for the default, {}",
-                cloth_core::layout::DEFAULT_WORKGROUP_SIZE
-            ),
-        })?;
+        cloth_core::layout::checked_workgroup_size(BACKEND_NAME)?;
         let model = ClothModel::new(scene);
         let data = GpuBuffers::new(&model);
         let device = &context.device;
