@@ -13,6 +13,10 @@
 #   stability    the stability suite's GPU cases (devbin/stability) with CI=1
 #   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
 #   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs on both GPU backends
+#   sweep        the kernels' tuning knobs, as FUSED:TILE:WORKGROUP:BLOCK (CLOTH_FUSED_SUBSTEPS,
+#                CLOTH_TILE, CLOTH_WORKGROUP_SIZE, CLOTH_BLOCK_WIDTH; SWEEP overrides the list):
+#                128² x 53, 1024² and 2048² x 64 on both backends, one CSV ($OUT/sweep.csv, a
+#                `config` column first)
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"
@@ -54,4 +58,18 @@ fi
 if [[ " $checks " == *" effects "* ]]; then
   echo "== bench --effects"
   devbin/cloth bench --effects --backends wgpu,vulkano --grids 128,512 --frames 10 --csv "$OUT/effects.csv" 2>&1 | tee "$OUT/effects.txt"
+fi
+if [[ " $checks " == *" sweep "* ]]; then
+  echo "== sweep: fused substeps : tile : workgroup size : block width"
+  configs=${SWEEP:-"0:40x48:256:0 0:40x48:256:32 3:40x48:256:32"}
+  : > "$OUT/sweep.csv"
+  for c in $configs; do
+    IFS=: read -r k tile wg block <<< "$c"
+    CLOTH_FUSED_SUBSTEPS=$k CLOTH_TILE=$tile CLOTH_WORKGROUP_SIZE=$wg CLOTH_BLOCK_WIDTH=$block devbin/cloth bench \
+      --backends wgpu,vulkano --grids ${SWEEP_GRIDS:-128,1024,2048} --substeps 53,64 --frames 20 --csv /tmp/sweep.csv > /tmp/sweep.txt 2>&1
+    grep -E "refused|error" /tmp/sweep.txt | head -2 | sed "s/^/$c /"
+    grep -E "^(wgpu|vulkano) " /tmp/sweep.txt | sed "s/^/$c /" | tee -a "$OUT/sweep.txt"
+    if [ ! -s "$OUT/sweep.csv" ]; then sed -n 1p /tmp/sweep.csv | sed 's/^/config,/' > "$OUT/sweep.csv"; fi
+    sed 1d /tmp/sweep.csv | sed "s/^/$c,/" >> "$OUT/sweep.csv"
+  done
 fi

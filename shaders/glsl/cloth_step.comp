@@ -82,9 +82,28 @@ void add_stencil_springs(inout vec3 force, uint index, vec3 x, vec3 v) {
     }
 }
 
+// Vertices along i of the block of the grid one workgroup updates (cloth_core::layout::
+// block_width): a workgroup updates BLOCK_WIDTH × (workgroup size / BLOCK_WIDTH) vertices, so
+// the rows its springs reach are mostly its own (L1 hits). 0: a workgroup's worth of a row.
+layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
+
 void main() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
     uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    if (BLOCK_WIDTH != 0u) {
+        // (max: not a specialization-constant operation, so vulkano does not fold a quotient by
+        // zero when it specializes a pipeline with BLOCK_WIDTH = 0.)
+        uint width = max(BLOCK_WIDTH, 1u);
+        uint block = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        uint blocks_along_i = (params.grid_nx + width - 1u) / width;
+        uint local_index = gl_LocalInvocationIndex;
+        uint vi = (block % blocks_along_i) * width + local_index % width;
+        uint vj = (block / blocks_along_i) * (gl_WorkGroupSize.x / width) + local_index / width;
+        if (vi >= params.grid_nx || vj >= params.grid_ny) {
+            return;
+        }
+        i = vj * params.grid_nx + vi;
+    }
     if (i >= params.vertex_count) {
         return;
     }

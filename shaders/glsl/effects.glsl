@@ -15,5 +15,8 @@ layout(constant_id = 9) const bool EFFECT_MOVING_PINS = false;
 layout(constant_id = 10) const bool EFFECT_MOVING_SPHERES = false;
 // Any spring kind at all (a specialization-constant expression, so the branch on it is constant).
 #define ANY_SPRINGS (EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND)
-// local_size_x is the default; local_size_x_id makes it specializable (id 100).
+// local_size_x is the default; local_size_x_id makes it specializable (id 100). (A kernel whose
+// workgroup has another shape defines TILED_WORKGROUP first and declares its own.)
+#ifndef TILED_WORKGROUP
 layout(local_size_x = 256, local_size_x_id = 100) in;
+#endif

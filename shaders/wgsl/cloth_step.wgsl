@@ -74,10 +74,28 @@ fn add_stencil_springs(force: ptr<function, vec3<f32>>, index: u32, x: vec3<f32>
     }
 }
 
+// Vertices along i of the block of the grid one workgroup updates (cloth_core::layout::
+// block_width): a workgroup updates BLOCK_WIDTH × (WORKGROUP_SIZE / BLOCK_WIDTH) vertices, so
+// the rows its springs reach are mostly its own (L1 hits). 0: WORKGROUP_SIZE vertices of a row.
+override BLOCK_WIDTH: u32 = 0u;
+
 @compute @workgroup_size(WORKGROUP_SIZE)
-fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+           @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
     // 2D dispatch: more than 65535 workgroups spill into y.
-    let i = id.y * groups.x * WORKGROUP_SIZE + id.x;
+    var i = id.y * groups.x * WORKGROUP_SIZE + id.x;
+    if (BLOCK_WIDTH != 0u) {
+        // (max: no constant division by zero where the pipeline has BLOCK_WIDTH = 0.)
+        let width = max(BLOCK_WIDTH, 1u);
+        let block = group.y * groups.x + group.x;
+        let blocks_along_i = (params.grid_nx + width - 1u) / width;
+        let vi = (block % blocks_along_i) * width + local % width;
+        let vj = (block / blocks_along_i) * (WORKGROUP_SIZE / width) + local / width;
+        if (vi >= params.grid_nx || vj >= params.grid_ny) {
+            return;
+        }
+        i = vj * params.grid_nx + vi;
+    }
     if (i >= params.vertex_count) {
         return;
     }

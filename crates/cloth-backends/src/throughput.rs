@@ -102,6 +102,9 @@ pub struct ThroughputRow {
     pub submissions_per_frame: f64,
     /// Host waits per frame, the one that ends the measurement included.
     pub host_waits_per_frame: f64,
+    /// Substeps one dispatch advanced ([`Simulator::fused_substeps`]: more than 1 where the
+    /// backend fuses them with its tiled kernel).
+    pub fused_substeps: u32,
     /// Whether the state was still finite at the end (a fixed step too long for a fine grid
     /// blows up; its timing is still the kernel's, but the row says so).
     pub finite: bool,
@@ -169,6 +172,7 @@ pub fn measure(
         vertex_substeps_per_s: work / gpu_seconds.unwrap_or(wall),
         submissions_per_frame: submissions as f64 / f,
         host_waits_per_frame: waits as f64 / f,
+        fused_substeps: sim.fused_substeps(),
         finite,
     })
 }

@@ -486,17 +486,52 @@ pub fn workgroup_size() -> Result<u32, String> {
     }
 }
 
-/// [`workgroup_size`] as the error a GPU backend named `backend` returns when the knob is wrong.
+/// Vertices along `i` of the 2D block of the grid one workgroup of the per-substep kernels
+/// updates (`cloth_step.wgsl` / `.comp`), unless `CLOTH_BLOCK_WIDTH` says otherwise: a workgroup
+/// of `w` invocations updates a `BLOCK_WIDTH × (w / BLOCK_WIDTH)` block, so the neighbours two
+/// rows up and down that its springs read are mostly its own and come from the SM's L1 cache
+/// rather than L2. `0`: a workgroup updates `w` consecutive vertices of a row (the layout before).
+pub const DEFAULT_BLOCK_WIDTH: u32 = 32;
+
+/// [`DEFAULT_BLOCK_WIDTH`], or the value of `CLOTH_BLOCK_WIDTH` (a tuning knob for benchmarks),
+/// checked against the workgroup size `threads`.
+///
+/// # Errors
+/// The variable and its value when it is not 0 or a power of two that divides `threads`.
+pub fn block_width(threads: u32) -> Result<u32, String> {
+    let width = match std::env::var("CLOTH_BLOCK_WIDTH") {
+        Ok(text) if !text.trim().is_empty() => text
+            .trim()
+            .parse::<u32>()
+            .map_err(|_| format!("the block width CLOTH_BLOCK_WIDTH={text} (a number)"))?,
+        _ => DEFAULT_BLOCK_WIDTH,
+    };
+    if width != 0 && (!width.is_power_of_two() || threads % width != 0) {
+        return Err(format!(
+            "the block width CLOTH_BLOCK_WIDTH={width} (0, or a power of two that divides the workgroup size {threads})"
+        ));
+    }
+    Ok(width.min(threads))
+}
+
+/// [`workgroup_size`] as the error a GPU backend named `backend` returns when the knob (or
+/// `CLOTH_BLOCK_WIDTH`, [`block_width`]) is wrong.
 ///
 /// # Errors
 /// [`SimError::Unsupported`](crate::error::SimError::Unsupported) naming the variable, its value
 /// and the fix.
 pub fn checked_workgroup_size(backend: &'static str) -> Result<u32, crate::error::SimError> {
-    workgroup_size().map_err(|what| crate::error::SimError::Unsupported {
+    let size = workgroup_size().map_err(|what| crate::error::SimError::Unsupported {
         backend,
         what,
         fix: format!("give it a power of two from 32 to 1024, or unset it for the default, {DEFAULT_WORKGROUP_SIZE}"),
-    })
+    })?;
+    block_width(size).map_err(|what| crate::error::SimError::Unsupported {
+        backend,
+        what,
+        fix: format!("unset it for the default, {DEFAULT_BLOCK_WIDTH}"),
+    })?;
+    Ok(size)
 }
 
 #[cfg(test)]

@@ -47,6 +47,7 @@ pub mod scene;
 pub mod simulator;
 pub mod springs;
 pub mod stability;
+pub mod tiling;
 pub mod validation;
 
 pub use effects::{Effect, EffectSet};

@@ -112,6 +112,12 @@ pub trait Simulator {
     /// [`SimError::Device`] when the read-back fails.
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError>;
 
+    /// Substeps one dispatch advances at once where the backend fuses them (temporal blocking,
+    /// [`crate::tiling`]); `1` where each substep is its own pass (and on the CPU).
+    fn fused_substeps(&self) -> u32 {
+        1
+    }
+
     /// Submissions and host waits of the last `advance` (no device access).
     fn last_advance_counts(&self) -> AdvanceCounts {
         AdvanceCounts::default()

@@ -18,12 +18,16 @@ mod simulator;
 mod timer;
 
 pub use context::{VulkanContext, list_devices};
-pub use passes::{STAGE_CONSTANT_ID, WORKGROUP_SIZE, WORKGROUP_SIZE_CONSTANT_ID};
+pub use passes::{STAGE_CONSTANT_ID, TILE_CONSTANT_IDS, WORKGROUP_SIZE, WORKGROUP_SIZE_CONSTANT_ID};
 pub use simulator::VulkanoSimulator;
 
 /// SPIR-V of the force-based substep kernel (semi-implicit Euler, velocity Verlet), compiled from
 /// `shaders/glsl/cloth_step.comp` by `build.rs`.
 pub const STEP_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/cloth_step.spv"));
+
+/// SPIR-V of the tiled kernel that fuses several semi-implicit Euler substeps in one dispatch
+/// (`cloth_core::tiling`), compiled from `shaders/glsl/cloth_step_tiled.comp` by `build.rs`.
+pub const TILED_STEP_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/cloth_step_tiled.spv"));
 
 /// SPIR-V of the XPBD passes, compiled from `shaders/glsl/xpbd.comp` by `build.rs`.
 pub const XPBD_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/xpbd.spv"));

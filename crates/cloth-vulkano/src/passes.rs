@@ -3,13 +3,15 @@
 //!
 //! | integrator | passes per substep |
 //! |---|---|
-//! | semi-implicit Euler | 1: `cloth_step.comp`, `STAGE = 0` |
+//! | semi-implicit Euler | 1: `cloth_step.comp`, `STAGE = 0`; or, fused, `cloth_step_tiled.comp` for `FUSED_SUBSTEPS` at once |
 //! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
 //! | RK4 | 4: `STAGE = 3..=6`, one per stage (state `k` → S → `1 − k` → S → `1 − k`) |
 //! | XPBD | `xpbd.comp`: predict; `XPBD_ITERATIONS` × (one per non-empty colour + spheres); finish |
 //!
 //! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
-//! buffer `1 − k`; each pass has one descriptor set per `k`.
+//! buffer `1 − k`; each pass has one descriptor set per `k`. Semi-implicit Euler also has a tiled
+//! pass ([`TiledPass`], `cloth_core::tiling`) that advances several substeps in one dispatch, from
+//! `k` to `1 − k` likewise; the substeps left over run one at a time.
 
 use std::sync::Arc;
 
@@ -27,7 +29,9 @@ use vulkano::pipeline::layout::PipelineDescriptorSetLayoutCreateInfo;
 use vulkano::pipeline::{ComputePipeline, PipelineLayout, PipelineShaderStageCreateInfo};
 use vulkano::shader::{ShaderModule, ShaderModuleCreateInfo, SpecializationConstant};
 
-use crate::{BACKEND_NAME, STEP_SPIRV, XPBD_SPIRV};
+use cloth_core::tiling::TileConfig;
+
+use crate::{BACKEND_NAME, STEP_SPIRV, TILED_STEP_SPIRV, XPBD_SPIRV};
 
 /// Invocations per workgroup by default (specialization constant [`WORKGROUP_SIZE_CONSTANT_ID`];
 /// see `cloth_core::layout::workgroup_size` for the `CLOTH_WORKGROUP_SIZE` knob).
@@ -43,6 +47,12 @@ pub const WORKGROUP_SIZE_CONSTANT_ID: u32 = 100;
 /// Specialization-constant id of the pass a pipeline runs: `STAGE` in `cloth_step.comp` (0 Euler,
 /// 1 and 2 the Verlet halves), `XPBD_PASS` in `xpbd.comp`.
 pub const STAGE_CONSTANT_ID: u32 = 101;
+/// Specialization-constant ids of the tiled kernel's `TILE_WIDTH` and `TILE_HEIGHT` (its
+/// workgroup's size), `TILE_CELLS` and `FUSED_SUBSTEPS` (`cloth_step_tiled.comp`).
+pub const TILE_CONSTANT_IDS: [u32; 4] = [102, 103, 104, 106];
+/// Specialization-constant id of `BLOCK_WIDTH` in `cloth_step.comp`
+/// (`cloth_core::layout::block_width`).
+pub const BLOCK_WIDTH_CONSTANT_ID: u32 = 107;
 /// Binding of XPBD's colour range, a dynamic uniform buffer.
 const COLOR_RANGE_BINDING: u32 = 10;
 
@@ -74,8 +84,21 @@ pub(crate) struct Pass {
 pub(crate) struct SubstepPlan {
     pub pipelines: Vec<Arc<ComputePipeline>>,
     pub passes: Vec<Pass>,
+    /// The pass that advances several semi-implicit Euler substeps at once, if any.
+    pub tiled: Option<TiledPass>,
     /// `(buffer, bytes)` to upload before the first substep.
     pub uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)>,
+}
+
+/// One dispatch that advances [`TiledPass::substeps`] semi-implicit Euler substeps at once.
+pub(crate) struct TiledPass {
+    pub pipeline: Arc<ComputePipeline>,
+    /// The descriptor set when state buffer `k` is current.
+    pub sets: [Arc<DescriptorSet>; 2],
+    /// Workgroups along x, y, z: one per output block.
+    pub workgroups: [u32; 3],
+    /// Substeps per dispatch.
+    pub substeps: u32,
 }
 
 fn device_error(reason: impl std::fmt::Display) -> SimError {
@@ -87,6 +110,17 @@ pub(crate) fn workgroups(items: u32, max_x: u32) -> [u32; 3] {
     let groups = items.div_ceil(workgroup_size()).max(1);
     let max_x = max_x.max(1);
     if groups <= max_x { [groups, 1, 1] } else { [max_x, groups.div_ceil(max_x), 1] }
+}
+
+/// Workgroups of the per-substep kernel when each updates a `block_width`-wide block of the grid
+/// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
+fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> [u32; 3] {
+    let [nx, ny] = scene.cloth.resolution;
+    if block_width == 0 {
+        return workgroups(nx * ny, max_x);
+    }
+    let rows = workgroup_size() / block_width;
+    workgroups(nx.div_ceil(block_width) * ny.div_ceil(rows) * workgroup_size(), max_x)
 }
 
 /// A SPIR-V module whose pipelines share one layout (reflected from the module; XPBD's colour
@@ -128,10 +162,24 @@ impl Kernel {
         Ok(Self { device: device.clone(), module, layout, effects })
     }
 
-    /// The pipeline with the scene's effects, the workgroup size and `STAGE`/`XPBD_PASS = stage`.
+    /// The pipeline with the scene's effects, the workgroup size and `XPBD_PASS = stage`.
     fn pipeline(&self, stage: u32) -> Result<Arc<ComputePipeline>, SimError> {
-        let constants =
-            self.effects.iter().cloned().chain([(STAGE_CONSTANT_ID, SpecializationConstant::U32(stage))]).collect();
+        self.pipeline_with([(STAGE_CONSTANT_ID, stage)])
+    }
+
+    /// The per-substep kernel's pipeline: `STAGE = stage`, and its block width.
+    fn step_pipeline(&self, stage: u32, block_width: u32) -> Result<Arc<ComputePipeline>, SimError> {
+        self.pipeline_with([(STAGE_CONSTANT_ID, stage), (BLOCK_WIDTH_CONSTANT_ID, block_width)])
+    }
+
+    /// The pipeline with the scene's effects, the workgroup size and the given `u32` constants.
+    fn pipeline_with(&self, values: impl IntoIterator<Item = (u32, u32)>) -> Result<Arc<ComputePipeline>, SimError> {
+        let constants = self
+            .effects
+            .iter()
+            .cloned()
+            .chain(values.into_iter().map(|(id, value)| (id, SpecializationConstant::U32(value))))
+            .collect();
         let entry = self
             .module
             .specialize(constants)
@@ -170,6 +218,9 @@ pub(crate) fn plan(
     let storage = BufferUsage::STORAGE_BUFFER | BufferUsage::TRANSFER_DST | BufferUsage::TRANSFER_SRC;
     let max_x = device.physical_device().properties().max_compute_work_group_count[0];
     let vertices = workgroups(data.positions.len() as u32, max_x);
+    // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
+    let block_width = cloth_core::layout::block_width(workgroup_size()).unwrap_or(0);
+    let blocks = block_workgroups(scene, block_width, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let mut uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)> = Vec::new();
     let mut buffer_with = |usage: BufferUsage, bytes: Vec<u8>| -> Result<Subbuffer<[u8]>, SimError> {
@@ -201,14 +252,19 @@ pub(crate) fn plan(
             let pass = |pipeline: usize, sets: [Arc<DescriptorSet>; 2]| Pass {
                 pipeline,
                 sets,
-                workgroups: vertices,
+                workgroups: blocks,
                 dynamic_offset: None,
             };
             let state_bytes = std::mem::size_of_val(data.positions.as_slice()) as u64;
             match scene.integrator {
                 Integrator::SemiImplicitEuler => {
                     let sets = [set([&p[0], &v[0], &p[1], &v[1]])?, set([&p[1], &v[1], &p[0], &v[0]])?];
-                    Ok(SubstepPlan { pipelines: vec![kernel.pipeline(0)?], passes: vec![pass(0, sets)], uploads })
+                    Ok(SubstepPlan {
+                        pipelines: vec![kernel.step_pipeline(0, block_width)?],
+                        passes: vec![pass(0, sets)],
+                        tiled: tiled_pass(device, scene, state, descriptors)?,
+                        uploads,
+                    })
                 }
                 Integrator::VelocityVerlet => {
                     // Verlet's half-step velocities, and a sink for the positions its second kick
@@ -218,8 +274,9 @@ pub(crate) fn plan(
                     let first = [set([&p[0], &v[0], &p[1], &v_half])?, set([&p[1], &v[1], &p[0], &v_half])?];
                     let second = [set([&p[1], &v_half, &sink, &v[1]])?, set([&p[0], &v_half, &sink, &v[0]])?];
                     Ok(SubstepPlan {
-                        pipelines: vec![kernel.pipeline(1)?, kernel.pipeline(2)?],
+                        pipelines: vec![kernel.step_pipeline(1, block_width)?, kernel.step_pipeline(2, block_width)?],
                         passes: vec![pass(0, first), pass(1, second)],
+                        tiled: None,
                         uploads,
                     })
                 }
@@ -245,10 +302,10 @@ pub(crate) fn plan(
                     let mut passes = Vec::new();
                     let mut pipelines = Vec::new();
                     for n in 1..=4 {
-                        pipelines.push(kernel.pipeline(2 + n)?);
+                        pipelines.push(kernel.step_pipeline(2 + n, block_width)?);
                         passes.push(pass(n as usize - 1, stage(n)?));
                     }
-                    Ok(SubstepPlan { pipelines, passes, uploads })
+                    Ok(SubstepPlan { pipelines, passes, tiled: None, uploads })
                 }
             }
         }
@@ -305,7 +362,53 @@ pub(crate) fn plan(
                 }
             }
             passes.push(pass(3, vertices, 0));
-            Ok(SubstepPlan { pipelines, passes, uploads })
+            Ok(SubstepPlan { pipelines, passes, tiled: None, uploads })
         }
     }
+}
+
+/// The tile semi-implicit Euler uses for a grid of `vertices` on `device` (`cloth_core::tiling`:
+/// the largest default tile the device's workgroup memory and invocations allow, on grids where
+/// tiling pays), or none: every substep is then its own dispatch, as exact.
+pub(crate) fn usable_tile(device: &Arc<Device>, vertices: u32) -> Result<Option<TileConfig>, SimError> {
+    let limits = device.physical_device().properties();
+    let [x, y, _] = limits.max_compute_work_group_size;
+    let invocations = limits.max_compute_work_group_invocations.min(x * y);
+    cloth_core::tiling::checked_tile_config(BACKEND_NAME, vertices, invocations, limits.max_compute_shared_memory_size)
+}
+
+/// The tiled pass of semi-implicit Euler (`cloth_step_tiled.comp`), if the device can run it.
+fn tiled_pass(
+    device: &Arc<Device>,
+    scene: &Scene,
+    state: &StateBuffers,
+    descriptors: &Arc<StandardDescriptorSetAllocator>,
+) -> Result<Option<TiledPass>, SimError> {
+    let Some(tile) = usable_tile(device, scene.cloth.resolution[0] * scene.cloth.resolution[1])? else {
+        return Ok(None);
+    };
+    let kernel = Kernel::new(device, scene, TILED_STEP_SPIRV, None)?;
+    let [p, v] = [&state.positions, &state.velocities];
+    let set = |k: usize| {
+        kernel.set(
+            descriptors,
+            [
+                WriteDescriptorSet::buffer(0, state.params.clone()),
+                WriteDescriptorSet::buffer(1, state.spheres.clone()),
+                WriteDescriptorSet::buffer(2, p[k].clone()),
+                WriteDescriptorSet::buffer(3, v[k].clone()),
+                WriteDescriptorSet::buffer(4, p[1 - k].clone()),
+                WriteDescriptorSet::buffer(5, v[1 - k].clone()),
+                WriteDescriptorSet::buffer(6, state.max_penetration.clone()),
+            ],
+        )
+    };
+    let values = [tile.width, tile.height, tile.cells(), tile.substeps];
+    let (x, y) = tile.workgroups(scene.cloth.resolution[0], scene.cloth.resolution[1]);
+    Ok(Some(TiledPass {
+        pipeline: kernel.pipeline_with(TILE_CONSTANT_IDS.into_iter().zip(values))?,
+        sets: [set(0)?, set(1)?],
+        workgroups: [x, y, 1],
+        substeps: tile.substeps,
+    }))
 }

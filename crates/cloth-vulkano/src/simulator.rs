@@ -206,7 +206,33 @@ impl VulkanoSimulator {
             timer.begin(&mut frame.recording).map_err(device_error)?;
         }
         let mut bound = None;
-        for _ in 0..substeps {
+        let mut left = substeps;
+        while left > 0 {
+            // Several substeps in one tiled dispatch where they fit, the rest one at a time.
+            if let Some(tiled) = &self.plan.tiled
+                && left >= tiled.substeps as u64
+            {
+                let rec = &mut frame.recording;
+                // SAFETY: as below; the tiled kernel bounds-checks every cell against the grid.
+                unsafe {
+                    rec.bind_pipeline_compute(&tiled.pipeline).map_err(|e| device_error(format!("binding: {e}")))?;
+                    rec.bind_descriptor_sets(
+                        PipelineBindPoint::Compute,
+                        tiled.pipeline.layout(),
+                        0,
+                        &[tiled.sets[self.current].as_raw()],
+                        &[],
+                    )
+                    .map_err(|e| device_error(format!("binding: {e}")))?;
+                    rec.dispatch(tiled.workgroups).map_err(|e| device_error(format!("dispatch: {e}")))?;
+                }
+                bound = None;
+                frame.between_dispatches().map_err(device_error)?;
+                self.current = 1 - self.current;
+                left -= tiled.substeps as u64;
+                continue;
+            }
+            left -= 1;
             for pass in &self.plan.passes {
                 let pipeline = &self.plan.pipelines[pass.pipeline];
                 let rec = &mut frame.recording;
@@ -387,6 +413,10 @@ impl Simulator for VulkanoSimulator {
 
     fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    fn fused_substeps(&self) -> u32 {
+        self.plan.tiled.as_ref().map_or(1, |tiled| tiled.substeps)
     }
 
     fn advance(&mut self, frames: u32) -> Result<(), SimError> {

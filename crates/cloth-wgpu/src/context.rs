@@ -88,9 +88,10 @@ fn no_adapter_reason() -> String {
 }
 
 /// The features and limits the simulator asks of a device on `adapter`: the largest storage
-/// buffers and workgroup grids it offers, every storage buffer per stage it offers (the kernels
-/// bind 9; WebGPU's default is 8), and timestamp queries where there are any. A host that opens the
-/// device itself (the inspector shares eframe's) requests these so the simulator can run on it.
+/// buffers, workgroup grids and workgroup memory it offers, every storage buffer per stage it
+/// offers (the kernels bind 9; WebGPU's default is 8), and timestamp queries where there are any.
+/// A host that opens the device itself (the inspector shares eframe's) requests these so the
+/// simulator can run on it.
 pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Limits) {
     let offered = adapter.limits();
     let limits = wgpu::Limits {
@@ -100,6 +101,8 @@ pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Li
         max_compute_workgroups_per_dimension: offered.max_compute_workgroups_per_dimension,
         max_compute_invocations_per_workgroup: offered.max_compute_invocations_per_workgroup,
         max_compute_workgroup_size_x: offered.max_compute_workgroup_size_x,
+        // The tiled Euler kernel keeps its tile in workgroup memory (cloth_core::tiling).
+        max_compute_workgroup_storage_size: offered.max_compute_workgroup_storage_size,
         ..wgpu::Limits::default()
     };
     (adapter.features() & wgpu::Features::TIMESTAMP_QUERY, limits)

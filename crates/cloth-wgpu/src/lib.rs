@@ -27,6 +27,25 @@ pub use simulator::WgpuSimulator;
 pub const STEP_SHADER: &str =
     concat!(include_str!("../../../shaders/wgsl/common.wgsl"), include_str!("../../../shaders/wgsl/cloth_step.wgsl"));
 
+/// WGSL source of the tiled kernel that fuses several semi-implicit Euler substeps in one
+/// dispatch (`shaders/wgsl/common.wgsl` followed by `cloth_step_tiled.wgsl`); the backend prepends
+/// the tile's constants ([`tiled_shader_source`]).
+pub const TILED_STEP_SHADER: &str = concat!(
+    include_str!("../../../shaders/wgsl/common.wgsl"),
+    include_str!("../../../shaders/wgsl/cloth_step_tiled.wgsl")
+);
+
+/// The tiled kernel's source for `tile`: its constants (`TILE_WIDTH`, `TILE_HEIGHT`,
+/// `FUSED_SUBSTEPS`, from `cloth_core::tiling::TileConfig`) followed by [`TILED_STEP_SHADER`].
+/// (Constants rather than pipeline overrides: WGSL sizes workgroup arrays and the workgroup by
+/// constants everywhere naga reads it.)
+pub fn tiled_shader_source(tile: &cloth_core::tiling::TileConfig) -> String {
+    format!(
+        "const TILE_WIDTH: u32 = {}u;\nconst TILE_HEIGHT: u32 = {}u;\nconst FUSED_SUBSTEPS: u32 = {}u;\n{TILED_STEP_SHADER}",
+        tile.width, tile.height, tile.substeps
+    )
+}
+
 /// WGSL source of the XPBD passes (`shaders/wgsl/common.wgsl` followed by `xpbd.wgsl`).
 pub const XPBD_SHADER: &str =
     concat!(include_str!("../../../shaders/wgsl/common.wgsl"), include_str!("../../../shaders/wgsl/xpbd.wgsl"));

@@ -2,19 +2,23 @@
 //!
 //! | integrator | passes per substep |
 //! |---|---|
-//! | semi-implicit Euler | 1: `cloth_step.wgsl`, `STAGE = 0` |
+//! | semi-implicit Euler | 1: `cloth_step.wgsl`, `STAGE = 0`; or, fused, `cloth_step_tiled.wgsl` for `FUSED_SUBSTEPS` at once |
 //! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
 //! | RK4 | 4: `STAGE = 3..=6`, one per stage (state `k` → S → `1 − k` → S → `1 − k`) |
 //! | XPBD | `xpbd.wgsl`: predict; `XPBD_ITERATIONS` × (one per non-empty colour + spheres); finish |
 //!
 //! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
-//! buffer `1 − k`; each pass has one bind group per `k`.
+//! buffer `1 − k`; each pass has one bind group per `k`. Semi-implicit Euler also has a tiled pass
+//! ([`TiledPass`], `cloth_core::tiling`) that advances several substeps in one dispatch, from `k`
+//! to `1 − k` likewise; the substeps left over run one at a time.
 
 use cloth_core::coloring::COLOR_COUNT;
 use cloth_core::integrator::XPBD_ITERATIONS;
 use cloth_core::layout::{GpuBuffers, GpuColorRange, GpuSimParams};
 use cloth_core::{Effect, Integrator, Scene, SimError};
 use wgpu::util::DeviceExt;
+
+use cloth_core::tiling::TileConfig;
 
 use crate::{BACKEND_NAME, STEP_SHADER, XPBD_SHADER};
 
@@ -48,10 +52,22 @@ pub(crate) struct Pass {
     pub dynamic_offset: Option<u32>,
 }
 
-/// The dispatches of one substep, in order.
+/// The dispatches of one substep, in order, and the tiled pass that fuses several, if any.
 pub(crate) struct SubstepPlan {
     pub pipelines: Vec<wgpu::ComputePipeline>,
     pub passes: Vec<Pass>,
+    pub tiled: Option<TiledPass>,
+}
+
+/// One dispatch that advances [`TiledPass::substeps`] semi-implicit Euler substeps at once.
+pub(crate) struct TiledPass {
+    pub pipeline: wgpu::ComputePipeline,
+    /// The bind group when state buffer `k` is current.
+    pub groups: [wgpu::BindGroup; 2],
+    /// Workgroups along x and y: one per output block.
+    pub workgroups: (u32, u32),
+    /// Substeps per dispatch.
+    pub substeps: u32,
 }
 
 /// What a binding of a kernel's bind group layout holds.
@@ -95,6 +111,17 @@ pub(crate) fn workgroups(items: u32, max_x: u32) -> (u32, u32) {
     if groups <= max_x { (groups, 1) } else { (max_x, groups.div_ceil(max_x)) }
 }
 
+/// Workgroups of the per-substep kernel when each updates a `block_width`-wide block of the grid
+/// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
+fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> (u32, u32) {
+    let [nx, ny] = scene.cloth.resolution;
+    if block_width == 0 {
+        return workgroups(nx * ny, max_x);
+    }
+    let rows = workgroup_size() / block_width;
+    workgroups(nx.div_ceil(block_width) * ny.div_ceil(rows) * workgroup_size(), max_x)
+}
+
 /// A compiled kernel: its module's pipelines share one bind group layout.
 struct Kernel<'a> {
     device: &'a wgpu::Device,
@@ -111,13 +138,13 @@ impl<'a> Kernel<'a> {
         device: &'a wgpu::Device,
         scene: &'a Scene,
         name: &'static str,
-        source: &'static str,
+        source: &str,
         entry_point: &'static str,
         bindings: &[Binding],
     ) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(name),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
+            source: wgpu::ShaderSource::Wgsl(source.to_owned().into()),
         });
         let layout = bind_group_layout(device, &format!("{name} bind group layout"), bindings);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -128,8 +155,9 @@ impl<'a> Kernel<'a> {
         Self { device, scene, module, layout, pipeline_layout, entry_point, bindings: bindings.to_vec() }
     }
 
-    /// The pipeline with the scene's effects, the workgroup size and `(stage constant, value)`.
-    fn pipeline(&self, label: &str, stage: (&str, u32)) -> wgpu::ComputePipeline {
+    /// The pipeline with the scene's effects, the workgroup size and the kernel's own
+    /// `(constant, value)`s (its stage, its block width).
+    fn pipeline(&self, label: &str, own: &[(&str, u32)]) -> wgpu::ComputePipeline {
         let mut constants: Vec<(&str, f64)> = self
             .scene
             .effects
@@ -138,7 +166,7 @@ impl<'a> Kernel<'a> {
             .map(|(name, on)| (name, if on { 1.0 } else { 0.0 }))
             .collect();
         constants.push(("WORKGROUP_SIZE", workgroup_size() as f64));
-        constants.push((stage.0, stage.1 as f64));
+        constants.extend(own.iter().map(|&(name, value)| (name, value as f64)));
         self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(label),
             layout: Some(&self.pipeline_layout),
@@ -201,6 +229,9 @@ pub(crate) fn plan(
     }
     let max_x = device.limits().max_compute_workgroups_per_dimension;
     let vertices = workgroups(data.positions.len() as u32, max_x);
+    // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
+    let block_width = cloth_core::layout::block_width(workgroup_size()).unwrap_or(0);
+    let blocks = block_workgroups(scene, block_width, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let name = ["A", "B"];
     match scene.integrator {
@@ -235,7 +266,7 @@ pub(crate) fn plan(
             let pass = |pipeline: usize, groups: [wgpu::BindGroup; 2]| Pass {
                 pipeline,
                 groups,
-                workgroups: vertices,
+                workgroups: blocks,
                 dynamic_offset: None,
             };
             match scene.integrator {
@@ -247,8 +278,9 @@ pub(crate) fn plan(
                         )
                     });
                     Ok(SubstepPlan {
-                        pipelines: vec![kernel.pipeline("cloth Euler substep pipeline", ("STAGE", 0))],
+                        pipelines: vec![kernel.pipeline("cloth Euler substep pipeline", &[("STAGE", 0), ("BLOCK_WIDTH", block_width)])],
                         passes: vec![pass(0, groups)],
+                        tiled: tiled_pass(device, scene, state)?,
                     })
                 }
                 Integrator::VelocityVerlet => {
@@ -271,10 +303,11 @@ pub(crate) fn plan(
                     });
                     Ok(SubstepPlan {
                         pipelines: vec![
-                            kernel.pipeline("cloth Verlet kick and drift pipeline", ("STAGE", 1)),
-                            kernel.pipeline("cloth Verlet second kick pipeline", ("STAGE", 2)),
+                            kernel.pipeline("cloth Verlet kick and drift pipeline", &[("STAGE", 1), ("BLOCK_WIDTH", block_width)]),
+                            kernel.pipeline("cloth Verlet second kick pipeline", &[("STAGE", 2), ("BLOCK_WIDTH", block_width)]),
                         ],
                         passes: vec![pass(0, first), pass(1, second)],
+                        tiled: None,
                     })
                 }
                 _ => {
@@ -296,9 +329,10 @@ pub(crate) fn plan(
                     };
                     Ok(SubstepPlan {
                         pipelines: (1..=4)
-                            .map(|n| kernel.pipeline(&format!("cloth RK4 stage {n} pipeline"), ("STAGE", 2 + n)))
+                            .map(|n| kernel.pipeline(&format!("cloth RK4 stage {n} pipeline"), &[("STAGE", 2 + n), ("BLOCK_WIDTH", block_width)]))
                             .collect(),
                         passes: (1..=4).map(|n| pass(n as usize - 1, stage(n))).collect(),
+                        tiled: None,
                     })
                 }
             }
@@ -353,7 +387,9 @@ pub(crate) fn plan(
             let pipelines = ["predict", "project one colour", "project the spheres", "finish"]
                 .iter()
                 .enumerate()
-                .map(|(pass, what)| kernel.pipeline(&format!("cloth XPBD {what} pipeline"), ("XPBD_PASS", pass as u32)))
+                .map(|(pass, what)| {
+                    kernel.pipeline(&format!("cloth XPBD {what} pipeline"), &[("XPBD_PASS", pass as u32)])
+                })
                 .collect();
             let pass = |pipeline: usize, workgroups: (u32, u32), offset: u32| Pass {
                 pipeline,
@@ -375,7 +411,57 @@ pub(crate) fn plan(
                 }
             }
             passes.push(pass(3, vertices, 0));
-            Ok(SubstepPlan { pipelines, passes })
+            Ok(SubstepPlan { pipelines, passes, tiled: None })
         }
     }
+}
+
+/// The tile semi-implicit Euler uses for a grid of `vertices` on `device` (`cloth_core::tiling`:
+/// the largest default tile the device's workgroup memory and invocations allow, on grids where
+/// tiling pays), or none: every substep is then its own dispatch, as exact.
+pub(crate) fn usable_tile(device: &wgpu::Device, vertices: u32) -> Result<Option<TileConfig>, SimError> {
+    let limits = device.limits();
+    let invocations = limits
+        .max_compute_invocations_per_workgroup
+        .min(limits.max_compute_workgroup_size_x * limits.max_compute_workgroup_size_y);
+    cloth_core::tiling::checked_tile_config(BACKEND_NAME, vertices, invocations, limits.max_compute_workgroup_storage_size)
+}
+
+/// The tiled pass of semi-implicit Euler (`cloth_step_tiled.wgsl`), if the device can run it.
+fn tiled_pass(device: &wgpu::Device, scene: &Scene, state: &StateBuffers) -> Result<Option<TiledPass>, SimError> {
+    let Some(tile) = usable_tile(device, scene.cloth.resolution[0] * scene.cloth.resolution[1])? else {
+        return Ok(None);
+    };
+    let source = crate::tiled_shader_source(&tile);
+    let kernel = Kernel::new(
+        device,
+        scene,
+        "cloth_step_tiled.wgsl",
+        &source,
+        "substeps",
+        &[
+            Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
+            Binding::Storage { read_only: true },  // spheres
+            Binding::Storage { read_only: true },  // positions in
+            Binding::Storage { read_only: true },  // velocities in
+            Binding::Storage { read_only: false }, // positions out
+            Binding::Storage { read_only: false }, // velocities out
+            Binding::Storage { read_only: false }, // deepest penetration
+        ],
+    );
+    let [p, v] = [&state.positions, &state.velocities];
+    let groups = [0, 1].map(|k| {
+        kernel.bind_group(
+            &format!("cloth tiled substeps {} -> {}", ["A", "B"][k], ["A", "B"][1 - k]),
+            &[&state.params, &state.spheres, &p[k], &v[k], &p[1 - k], &v[1 - k], &state.max_penetration],
+        )
+    });
+    let nx = scene.cloth.resolution[0];
+    let ny = scene.cloth.resolution[1];
+    Ok(Some(TiledPass {
+        pipeline: kernel.pipeline("cloth tiled Euler substeps pipeline", &[]),
+        groups,
+        workgroups: tile.workgroups(nx, ny),
+        substeps: tile.substeps,
+    }))
 }

@@ -239,6 +239,10 @@ impl Simulator for WgpuSimulator {
         &self.scene
     }
 
+    fn fused_substeps(&self) -> u32 {
+        self.plan.tiled.as_ref().map_or(1, |tiled| tiled.substeps)
+    }
+
     fn advance(&mut self, frames: u32) -> Result<(), SimError> {
         self.check_device()?;
         self.last_advance = AdvanceCounts { frames, submissions: 0, host_waits: 0 };
@@ -260,7 +264,21 @@ impl Simulator for WgpuSimulator {
                 timestamp_writes: self.timer.as_ref().map(GpuTimer::pass_writes),
             });
             let mut bound = None;
-            for _ in 0..substeps {
+            let mut left = substeps;
+            while left > 0 {
+                // Several substeps in one tiled dispatch where they fit, the rest one at a time.
+                if let Some(tiled) = &self.plan.tiled
+                    && left >= tiled.substeps as u64
+                {
+                    pass.set_pipeline(&tiled.pipeline);
+                    bound = None;
+                    pass.set_bind_group(0, &tiled.groups[self.current], &[]);
+                    pass.dispatch_workgroups(tiled.workgroups.0, tiled.workgroups.1, 1);
+                    self.current = 1 - self.current;
+                    left -= tiled.substeps as u64;
+                    continue;
+                }
+                left -= 1;
                 for step in &self.plan.passes {
                     if bound != Some(step.pipeline) {
                         pass.set_pipeline(&self.plan.pipelines[step.pipeline]);
