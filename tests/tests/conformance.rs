@@ -341,7 +341,9 @@ fn bit_exact_with_the_f32_reference(backend: &Backend) {
     let mut tiles = with_grid(scene("drape.ron"), [61, 83]);
     tiles.cloth.mass = cloth_core::scene::Mass::PerVertex(0.01);
     tiles.time.substeps = Substeps::Fixed(41);
-    for (name, scene, frames) in [("drape 7x13", with_grid(scene("drape.ron"), [7, 13]), 12), ("drape 61x83", tiles, 18)] {
+    for (name, scene, frames) in
+        [("drape 7x13", with_grid(scene("drape.ron"), [7, 13]), 12), ("drape 61x83", tiles, 18)]
+    {
         let Some(mut sim) = create(backend, &scene) else { return };
         sim.advance(frames).unwrap();
         let state = sim.read_state().unwrap();
@@ -365,7 +367,8 @@ fn bit_exact_with_the_f32_reference(backend: &Backend) {
 #[test]
 fn gpu_backends_fuse_euler_substeps() {
     let _gpu = cloth_conformance::gpu_lock();
-    let tuned = ["CLOTH_FUSED_SUBSTEPS", "CLOTH_TILE", "CLOTH_WORKGROUP_SIZE"].iter().any(|v| std::env::var_os(v).is_some());
+    let tuned =
+        ["CLOTH_FUSED_SUBSTEPS", "CLOTH_TILE", "CLOTH_WORKGROUP_SIZE"].iter().any(|v| std::env::var_os(v).is_some());
     for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
         let mut scene = scene("drape.ron");
         let Some(sim) = create(backend, &scene) else { return };

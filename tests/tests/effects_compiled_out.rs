@@ -157,7 +157,13 @@ fn glsl_source(kernel: &str) -> String {
     // naga's GLSL front end has no atomics: a no-op function of the same shape stands in (it
     // changes no branch, so not what is reachable).
     let stub = "void naga_atomic_max(uint a, uint b) {}\n";
-    let out = out.replace("local_size_x_id = 100", "local_size_y = 1").replace("atomicMax(", "naga_atomic_max(");
+    // (And no specialization constants for sizes: the tiled kernel's workgroup and shared arrays
+    // keep their defaults, the default tile's.)
+    let out = out
+        .replace("local_size_x_id = 100", "local_size_y = 1")
+        .replace(", local_size_x_id = 102, local_size_y_id = 103", "")
+        .replace("layout(constant_id = 104) const uint TILE_CELLS", "const uint TILE_CELLS")
+        .replace("atomicMax(", "naga_atomic_max(");
     match out.find('\n') {
         Some(end_of_version) => format!("{}{stub}{}", &out[..=end_of_version], &out[end_of_version + 1..]),
         None => out,
@@ -171,7 +177,7 @@ fn pipeline_work(
     source: &str,
     entry: &str,
     effects: EffectSet,
-    stage: (&str, u32),
+    stage: Option<(&str, u32)>,
 ) -> BTreeSet<String> {
     let module = match language {
         Language::Wgsl => naga::front::wgsl::parse_str(source).expect("the shader parses"),
@@ -192,14 +198,17 @@ fn pipeline_work(
         };
         constants.insert(key, if on { 1.0 } else { 0.0 });
     }
-    match language {
-        Language::Wgsl => {
+    match (language, stage) {
+        (Language::Wgsl, stage) => {
             constants.insert("WORKGROUP_SIZE".to_string(), 64.0);
-            constants.insert(stage.0.to_string(), stage.1 as f64);
+            if let Some((name, value)) = stage {
+                constants.insert(name.to_string(), value as f64);
+            }
         }
-        Language::Glsl => {
-            constants.insert("101".to_string(), stage.1 as f64);
+        (Language::Glsl, Some((_, value))) => {
+            constants.insert("101".to_string(), value as f64);
         }
+        (Language::Glsl, None) => {}
     }
     let (module, _) = naga::back::pipeline_constants::process_overrides(
         &module,
@@ -228,13 +237,22 @@ fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> 
         (Language::Glsl, Integrator::Xpbd) => (glsl_source("xpbd.comp"), "main"),
         (Language::Glsl, _) => (glsl_source("cloth_step.comp"), "main"),
     };
-    stages
+    let mut all: Vec<(String, BTreeSet<String>)> = stages
         .into_iter()
         .map(|n| {
             let name = format!("{language:?} {integrator:?} {stage} {n}");
-            (name, pipeline_work(language, &source, entry, effects, (stage, n)))
+            (name, pipeline_work(language, &source, entry, effects, Some((stage, n))))
         })
-        .collect()
+        .collect();
+    if integrator == Integrator::SemiImplicitEuler {
+        // The tiled kernel that fuses Euler substeps (cloth_core::tiling), at the default tile.
+        let (source, entry) = match language {
+            Language::Wgsl => (cloth_wgpu::tiled_shader_source(&cloth_core::tiling::DEFAULT_TILE), "substeps"),
+            Language::Glsl => (glsl_source("cloth_step_tiled.comp"), "main"),
+        };
+        all.push((format!("{language:?} tiled Euler"), pipeline_work(language, &source, entry, effects, None)));
+    }
+    all
 }
 
 #[test]

@@ -491,7 +491,10 @@ pub fn workgroup_size() -> Result<u32, String> {
 /// of `w` invocations updates a `BLOCK_WIDTH × (w / BLOCK_WIDTH)` block, so the neighbours two
 /// rows up and down that its springs read are mostly its own and come from the SM's L1 cache
 /// rather than L2. `0`: a workgroup updates `w` consecutive vertices of a row (the layout before).
-pub const DEFAULT_BLOCK_WIDTH: u32 = 32;
+/// Tuned on the H100 (docs/performance.md): against rows, 64 (blocks of 64 × 4 at 256
+/// invocations) cut 1024² × 64 substeps from 2.66 to 2.35 ms and 2048² × 64 from 9.57 to
+/// 8.26 ms (wgpu); 16 and 32 gained a little less.
+pub const DEFAULT_BLOCK_WIDTH: u32 = 64;
 
 /// [`DEFAULT_BLOCK_WIDTH`], or the value of `CLOTH_BLOCK_WIDTH` (a tuning knob for benchmarks),
 /// checked against the workgroup size `threads`.
@@ -500,13 +503,12 @@ pub const DEFAULT_BLOCK_WIDTH: u32 = 32;
 /// The variable and its value when it is not 0 or a power of two that divides `threads`.
 pub fn block_width(threads: u32) -> Result<u32, String> {
     let width = match std::env::var("CLOTH_BLOCK_WIDTH") {
-        Ok(text) if !text.trim().is_empty() => text
-            .trim()
-            .parse::<u32>()
-            .map_err(|_| format!("the block width CLOTH_BLOCK_WIDTH={text} (a number)"))?,
+        Ok(text) if !text.trim().is_empty() => {
+            text.trim().parse::<u32>().map_err(|_| format!("the block width CLOTH_BLOCK_WIDTH={text} (a number)"))?
+        }
         _ => DEFAULT_BLOCK_WIDTH,
     };
-    if width != 0 && (!width.is_power_of_two() || threads % width != 0) {
+    if width != 0 && (!width.is_power_of_two() || !threads.is_multiple_of(width)) {
         return Err(format!(
             "the block width CLOTH_BLOCK_WIDTH={width} (0, or a power of two that divides the workgroup size {threads})"
         ));

@@ -45,8 +45,9 @@ pub struct TileConfig {
 
 /// The tiles in use unless the environment says otherwise, largest first: a device gets the
 /// first whose workgroup memory and invocations it allows. 32 × 16 cells with 2 substeps per
-/// dispatch (a 24 × 8 output block; 12 KiB and 512 invocations), the fastest of those measured on
-/// the H100 (docs/performance.md); 16 × 16 (6 KiB, 256 invocations, WebGPU's default limits).
+/// dispatch (a 24 × 8 output block; 12 KiB and 512 invocations): of the ten tiles measured on the
+/// H100 (docs/performance.md) within 5% of the fastest at 128² and 256², where tiling pays;
+/// 16 × 16 (6 KiB, 256 invocations: WebGPU's default limits).
 pub const DEFAULT_TILES: [TileConfig; 2] =
     [TileConfig { width: 32, height: 16, substeps: 2 }, TileConfig { width: 16, height: 16, substeps: 2 }];
 
@@ -54,10 +55,12 @@ pub const DEFAULT_TILES: [TileConfig; 2] =
 pub const DEFAULT_TILE: TileConfig = DEFAULT_TILES[0];
 
 /// Grids of more vertices than this run semi-implicit Euler one substep per dispatch unless the
-/// environment asks for tiles: on the H100 the tiled kernel (compute-bound: a third of the
-/// invocations only load the halo) is faster where launches dominate, up to this size, and the
-/// per-substep kernel (memory-bound) beyond (docs/performance.md).
-pub const MAX_TILED_VERTICES: u32 = 512 * 512;
+/// environment asks for tiles. On the H100 (docs/performance.md) the tiled kernel wins where the
+/// per-substep launches dominate and loses where the per-substep kernel streams at a good share of
+/// the memory bandwidth (the tile's halo is loaded and recomputed, and only 192 of 512
+/// invocations write): at 53 substeps, 0.19 against 0.30 ms at 128², 0.30 against 0.32 ms at
+/// 256², 0.83 against 0.59 ms at 512² (wgpu).
+pub const MAX_TILED_VERTICES: u32 = 256 * 256;
 
 impl TileConfig {
     /// Cells each side of the output block that are loaded but not written: the bend springs
@@ -99,9 +102,8 @@ impl TileConfig {
     /// `s` computes the cells at least `2s` from the tile's edge).
     pub fn recomputation(&self) -> f64 {
         let (w, h) = self.output_block();
-        let computed: u32 = (1..=self.substeps)
-            .map(|s| self.width.saturating_sub(4 * s) * self.height.saturating_sub(4 * s))
-            .sum();
+        let computed: u32 =
+            (1..=self.substeps).map(|s| self.width.saturating_sub(4 * s) * self.height.saturating_sub(4 * s)).sum();
         computed as f64 / ((w * h) as f64 * self.substeps as f64)
     }
 

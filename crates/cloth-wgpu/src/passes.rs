@@ -278,7 +278,12 @@ pub(crate) fn plan(
                         )
                     });
                     Ok(SubstepPlan {
-                        pipelines: vec![kernel.pipeline("cloth Euler substep pipeline", &[("STAGE", 0), ("BLOCK_WIDTH", block_width)])],
+                        pipelines: vec![
+                            kernel.pipeline(
+                                "cloth Euler substep pipeline",
+                                &[("STAGE", 0), ("BLOCK_WIDTH", block_width)],
+                            ),
+                        ],
                         passes: vec![pass(0, groups)],
                         tiled: tiled_pass(device, scene, state)?,
                     })
@@ -303,8 +308,14 @@ pub(crate) fn plan(
                     });
                     Ok(SubstepPlan {
                         pipelines: vec![
-                            kernel.pipeline("cloth Verlet kick and drift pipeline", &[("STAGE", 1), ("BLOCK_WIDTH", block_width)]),
-                            kernel.pipeline("cloth Verlet second kick pipeline", &[("STAGE", 2), ("BLOCK_WIDTH", block_width)]),
+                            kernel.pipeline(
+                                "cloth Verlet kick and drift pipeline",
+                                &[("STAGE", 1), ("BLOCK_WIDTH", block_width)],
+                            ),
+                            kernel.pipeline(
+                                "cloth Verlet second kick pipeline",
+                                &[("STAGE", 2), ("BLOCK_WIDTH", block_width)],
+                            ),
                         ],
                         passes: vec![pass(0, first), pass(1, second)],
                         tiled: None,
@@ -329,7 +340,12 @@ pub(crate) fn plan(
                     };
                     Ok(SubstepPlan {
                         pipelines: (1..=4)
-                            .map(|n| kernel.pipeline(&format!("cloth RK4 stage {n} pipeline"), &[("STAGE", 2 + n), ("BLOCK_WIDTH", block_width)]))
+                            .map(|n| {
+                                kernel.pipeline(
+                                    &format!("cloth RK4 stage {n} pipeline"),
+                                    &[("STAGE", 2 + n), ("BLOCK_WIDTH", block_width)],
+                                )
+                            })
                             .collect(),
                         passes: (1..=4).map(|n| pass(n as usize - 1, stage(n))).collect(),
                         tiled: None,
@@ -424,7 +440,12 @@ pub(crate) fn usable_tile(device: &wgpu::Device, vertices: u32) -> Result<Option
     let invocations = limits
         .max_compute_invocations_per_workgroup
         .min(limits.max_compute_workgroup_size_x * limits.max_compute_workgroup_size_y);
-    cloth_core::tiling::checked_tile_config(BACKEND_NAME, vertices, invocations, limits.max_compute_workgroup_storage_size)
+    cloth_core::tiling::checked_tile_config(
+        BACKEND_NAME,
+        vertices,
+        invocations,
+        limits.max_compute_workgroup_storage_size,
+    )
 }
 
 /// The tiled pass of semi-implicit Euler (`cloth_step_tiled.wgsl`), if the device can run it.
