@@ -102,8 +102,8 @@ pub struct ThroughputRow {
     pub submissions_per_frame: f64,
     /// Host waits per frame, the one that ends the measurement included.
     pub host_waits_per_frame: f64,
-    /// Substeps one dispatch advanced ([`Simulator::fused_substeps`]: more than 1 where the
-    /// backend fuses them with its tiled kernel).
+    /// Substeps one dispatch advanced ([`cloth_core::Simulator::fused_substeps`]: more than 1
+    /// where the backend fuses them with its tiled kernel).
     pub fused_substeps: u32,
     /// Whether the state was still finite at the end (a fixed step too long for a fine grid
     /// blows up; its timing is still the kernel's, but the row says so).
