@@ -48,6 +48,9 @@ pub struct Report {
     pub submissions_per_frame: f64,
     /// Host waits per frame inside `advance` (the final read-back is not counted).
     pub host_waits_per_frame: f64,
+    /// Substeps one dispatch advances (more than 1 where the backend fuses them: the tiled
+    /// Euler kernel).
+    pub substeps_per_dispatch: u32,
 }
 
 impl Report {
@@ -79,6 +82,7 @@ impl Report {
             wall_ms_per_frame: wall.as_secs_f64() * 1e3 / frames.max(1) as f64,
             submissions_per_frame: counts.submissions as f64 / frames.max(1) as f64,
             host_waits_per_frame: counts.host_waits as f64 / frames.max(1) as f64,
+            substeps_per_dispatch: sim.fused_substeps(),
         }
     }
 
@@ -106,8 +110,9 @@ impl Report {
             c[0], c[1], c[2], self.final_kinetic_energy_j, self.nan_count
         );
         println!(
-            "speed       {:.3} ms per frame (wall clock); {:.2} submissions and {:.2} host waits per frame",
-            self.wall_ms_per_frame, self.submissions_per_frame, self.host_waits_per_frame
+            "speed       {:.3} ms per frame (wall clock); {:.2} submissions and {:.2} host waits per frame; \
+             {} substeps per dispatch",
+            self.wall_ms_per_frame, self.submissions_per_frame, self.host_waits_per_frame, self.substeps_per_dispatch
         );
     }
 }

@@ -585,7 +585,19 @@ impl eframe::App for InspectorApp {
             ctx.request_repaint();
         }
         let current = self.state.backend.clone();
-        let adapter = self.runtime.sim.as_mut().map(|s| s.get().adapter_name()).unwrap_or_default();
+        // The adapter, and how many substeps each dispatch advances where the backend fuses them.
+        let adapter = self
+            .runtime
+            .sim
+            .as_mut()
+            .map(|s| {
+                let sim = s.get();
+                match sim.fused_substeps() {
+                    1 => sim.adapter_name(),
+                    n => format!("{} · tiled kernel, {n} substeps per dispatch", sim.adapter_name()),
+                }
+            })
+            .unwrap_or_default();
         egui::Panel::left("controls").resizable(true).default_size(340.0).show(ui, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| {
                 let mut ctx_panel = PanelContext {
