@@ -32,6 +32,7 @@ fn run_json_reports_every_documented_field() {
         "final_kinetic_energy_j",
         "final_centroid_m",
         "wall_ms_per_frame",
+        "substeps_per_dispatch",
     ] {
         assert!(v.get(key).is_some(), "missing {key} in {v}");
     }
@@ -109,6 +110,10 @@ fn run_on_gpu(backend: &str) {
     assert!(v["max_penetration_fraction_of_radius"].as_f64().unwrap() < 0.02, "{v}");
     assert_eq!(v["submissions_per_frame"], 1.0);
     assert_eq!(v["host_waits_per_frame"], 0.0);
+    // The drape (32², semi-implicit Euler) runs the tiled kernel: two substeps per dispatch.
+    if std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_none() && std::env::var_os("CLOTH_TILE").is_none() {
+        assert_eq!(v["substeps_per_dispatch"], 2, "{v}");
+    }
 }
 
 #[test]
@@ -226,6 +231,10 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
         let gpu = !r[0].starts_with("cpu");
         assert_eq!(r[column("gpu_ms_per_frame")].is_empty(), !gpu, "{r:?}");
         assert_eq!(r[column("ceiling_fraction")].is_empty(), !gpu, "{r:?}");
+        let tuned = std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_some() || std::env::var_os("CLOTH_TILE").is_some();
+        if !tuned {
+            assert_eq!(r[column("fused_substeps")], if gpu { "2" } else { "1" }, "{r:?}");
+        }
         if gpu {
             assert_eq!(r[column("submissions_per_frame")], "1.000", "{r:?}");
             let fraction: f64 = r[column("ceiling_fraction")].parse().unwrap();
