@@ -2,8 +2,9 @@
 #extension GL_GOOGLE_include_directive : require
 
 // Several semi-implicit Euler substeps in one dispatch, each workgroup on a tile of the grid in
-// workgroup (shared) memory, one invocation per cell: temporal blocking (cloth_core::tiling says how and why). The tile's
-// constants come from cloth_core::tiling::TileConfig as specialization constants. Each vertex's
+// workgroup (shared) memory, one invocation per cell: temporal blocking (cloth_core::tiling says
+// how and why). The tile's constants come from cloth_core::tiling::TileConfig as specialization
+// constants. Each vertex's
 // arithmetic is cloth_step.comp's with STAGE = 0, operation by operation (springs, normal and
 // state read from shared memory instead of the state buffers), so the result is the same to the
 // bit. Mirrors shaders/wgsl/cloth_step_tiled.wgsl.
@@ -29,7 +30,7 @@ layout(set = 0, binding = 5, std430) buffer VelocitiesOut { vec4 velocities_out[
 layout(set = 0, binding = 6, std430) buffer MaxPenetration { uint max_penetration_bits; };
 
 // The tile's state, one array per component (24 bytes a cell): cell c = a + b · TILE_WIDTH holds
-// grid vertex (origin_i + a, origin_j + b).
+// the grid vertex (a, b) cells from the tile's corner (the output block's corner less the halo).
 shared float tile_px[TILE_CELLS];
 shared float tile_py[TILE_CELLS];
 shared float tile_pz[TILE_CELLS];

@@ -22,7 +22,7 @@ const HALO: u32 = 2u * FUSED_SUBSTEPS;
 @group(0) @binding(6) var<storage, read_write> max_penetration_bits: atomic<u32>;
 
 // The tile's state, one array per component (24 bytes a cell): cell c = a + b · TILE_WIDTH holds
-// grid vertex (origin_i + a, origin_j + b).
+// the grid vertex (a, b) cells from the tile's corner (the output block's corner less the halo).
 var<workgroup> tile_px: array<f32, TILE_CELLS>;
 var<workgroup> tile_py: array<f32, TILE_CELLS>;
 var<workgroup> tile_pz: array<f32, TILE_CELLS>;
