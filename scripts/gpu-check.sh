@@ -61,7 +61,7 @@ if [[ " $checks " == *" effects "* ]]; then
 fi
 if [[ " $checks " == *" sweep "* ]]; then
   echo "== sweep: fused substeps : tile : workgroup size : block width"
-  configs=${SWEEP:-"0:40x48:256:0 0:40x48:256:32 3:40x48:256:32"}
+  configs=${SWEEP:-"0:32x16:256:0 0:32x16:256:64 2:32x16:256:64 2:32x32:256:64"}
   : > "$OUT/sweep.csv"
   for c in $configs; do
     IFS=: read -r k tile wg block <<< "$c"
