@@ -2,6 +2,7 @@
 
 use cloth_conformance::{Backend, create, scene};
 use cloth_core::scene::{ClothSpec, Corner, Orientation, Pin, Substeps, TimeSpec};
+use cloth_core::tiling::Tiling;
 use cloth_core::{ClothState, CpuSimulator, CpuSimulatorF64, Effect, Scene, Simulator};
 
 // ---------------------------------------------------------------------------------------------
@@ -333,10 +334,12 @@ fn an_absent_effect_equals_zero_strength(backend: &Backend) {
     }
 }
 
-/// Bit for bit the f32 reference (where no multiply-adds are fused: see EXPECTED_DIFFERENCES).
-/// The second grid spans several output blocks of the tiled Euler kernel (`cloth_core::tiling`)
-/// each way, is no multiple of a block, and lands on the sphere (contact and friction at the
-/// seams); its 41 substeps a frame leave a remainder for the one-substep kernel.
+/// Bit for bit the f32 reference (where no multiply-adds are fused: see EXPECTED_DIFFERENCES),
+/// with semi-implicit Euler's tiled kernel off and on (`Tiling`; the GPU backends' default is off
+/// on a CPU implementation such as lavapipe, on on a GPU for small grids). The second grid spans
+/// several output blocks of the tiled kernel (`cloth_core::tiling`) each way, is no multiple of a
+/// block, and lands on the sphere (contact and friction at the seams); its 41 substeps a frame
+/// leave a remainder for the one-substep kernel.
 fn bit_exact_with_the_f32_reference(backend: &Backend) {
     let mut tiles = with_grid(scene("drape.ron"), [61, 83]);
     tiles.cloth.mass = cloth_core::scene::Mass::PerVertex(0.01);
@@ -344,41 +347,90 @@ fn bit_exact_with_the_f32_reference(backend: &Backend) {
     for (name, scene, frames) in
         [("drape 7x13", with_grid(scene("drape.ron"), [7, 13]), 12), ("drape 61x83", tiles, 18)]
     {
-        let Some(mut sim) = create(backend, &scene) else { return };
-        sim.advance(frames).unwrap();
-        let state = sim.read_state().unwrap();
-        let penetration = sim.diagnostics().unwrap().max_penetration_m;
         let mut cpu = CpuSimulator::new(&scene).unwrap();
         cpu.advance(frames).unwrap();
         let reference = cpu.read_state().unwrap();
-        let d = max_difference(&state, &reference);
-        assert!(state.positions == reference.positions, "{name}: positions are not bit-exact (max difference {d} m)");
-        assert!(state.velocities == reference.velocities, "{name}: velocities are not bit-exact");
         let expected = cpu.diagnostics().unwrap().max_penetration_m;
         if name.contains("61x83") {
             assert!(expected > 0.0, "{name}: the cloth should have reached the sphere");
         }
-        assert_eq!(penetration, expected, "{name}: deepest penetration, m");
+        for tiling in [Tiling::Off, Tiling::On] {
+            let Some(mut sim) = create(backend, &scene) else { return };
+            sim.set_tiling(tiling).unwrap();
+            sim.advance(frames).unwrap();
+            let state = sim.read_state().unwrap();
+            let penetration = sim.diagnostics().unwrap().max_penetration_m;
+            let d = max_difference(&state, &reference);
+            assert!(
+                state.positions == reference.positions,
+                "{name}, {tiling:?}: positions are not bit-exact (max difference {d} m)"
+            );
+            assert!(state.velocities == reference.velocities, "{name}, {tiling:?}: velocities are not bit-exact");
+            assert_eq!(penetration, expected, "{name}, {tiling:?}: deepest penetration, m");
+        }
     }
 }
 
-/// The GPU backends run semi-implicit Euler with the tiled kernel (several substeps a dispatch),
-/// so the cases above test it; the other integrators one pass at a time.
+/// Semi-implicit Euler's tiled kernel gives what the one-substep kernel gives, on scenes with
+/// pins, wind, air drag and moving pins and spheres (every effect the tiled kernel compiles in):
+/// bit for bit on lavapipe, within the f32 tolerance where the compiler may fuse multiply-adds
+/// differently in the two kernels. (On the CPU backends there is no tiled kernel: nothing to do.)
+fn tiled_and_one_substep_euler_agree(backend: &Backend) {
+    let mut flag = with_grid(scene("flag.ron"), [50, 30]);
+    flag.integrator = cloth_core::Integrator::SemiImplicitEuler;
+    let cases = [("hanging 13x5 pinned", with_grid(scene("hanging.ron"), [13, 5]), 30), ("flag 50x30", flag, 8)];
+    for (name, scene, frames) in cases {
+        let mut states = Vec::new();
+        for tiling in [Tiling::Off, Tiling::On] {
+            let Some(mut sim) = create(backend, &scene) else { return };
+            if sim.set_tiling(tiling).unwrap() == 1 && tiling == Tiling::On {
+                assert!(backend.name.starts_with("cpu"), "{name}: {} runs no tiled kernel", backend.name);
+                return;
+            }
+            sim.advance(frames).unwrap();
+            states.push((sim.read_state().unwrap(), sim.adapter_name()));
+        }
+        let (off, adapter) = &states[0];
+        let on = &states[1].0;
+        assert_eq!(off.non_finite_count(), 0, "{name}");
+        let moved = off.positions.iter().zip(&scene_start(&scene).positions).any(|(p, q)| (p[1] - q[1]).abs() > 1e-3);
+        assert!(moved, "{name}: the cloth did not move, the comparison shows nothing");
+        let d = max_difference(on, off);
+        if adapter.contains("llvmpipe") {
+            assert!(on.positions == off.positions && on.velocities == off.velocities, "{name}: differ by {d} m");
+        } else {
+            assert!(d <= F32_TOLERANCE_M, "{name}: the tiled kernel differs by {d} m");
+        }
+    }
+}
+
+/// The state a scene starts from.
+fn scene_start(scene: &Scene) -> ClothState {
+    CpuSimulator::new(scene).unwrap().read_state().unwrap()
+}
+
+/// The GPU backends choose the tiled kernel as `Tiling` says: by default on a GPU for a small grid
+/// (not on a CPU implementation, where it is slower), whenever asked to where the device can run
+/// it, never for the other integrators.
 #[test]
-fn gpu_backends_fuse_euler_substeps() {
+fn gpu_backends_fuse_euler_substeps_as_asked() {
     let _gpu = cloth_conformance::gpu_lock();
     let tuned =
         ["CLOTH_FUSED_SUBSTEPS", "CLOTH_TILE", "CLOTH_WORKGROUP_SIZE"].iter().any(|v| std::env::var_os(v).is_some());
     for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
         let mut scene = scene("drape.ron");
-        let Some(sim) = create(backend, &scene) else { return };
-        // Every device we run on (lavapipe: 32 KiB of workgroup memory) fits a default tile.
+        let Some(mut sim) = create(backend, &scene) else { return };
+        let cpu_device = sim.adapter_name().contains("Cpu");
         if !tuned {
-            assert!(sim.fused_substeps() > 1, "{}: Euler runs one substep per dispatch", backend.name);
+            let expected = if cpu_device { 1 } else { 2 };
+            assert_eq!(sim.fused_substeps(), expected, "{}: Euler's substeps per dispatch by default", backend.name);
+            // Every device we run on (lavapipe: 32 KiB of workgroup memory) fits a default tile.
+            assert!(sim.set_tiling(Tiling::On).unwrap() > 1, "{}: Euler runs untiled when asked to tile", backend.name);
         }
+        assert_eq!(sim.set_tiling(Tiling::Off).unwrap(), 1, "{}: tiling off", backend.name);
         scene.integrator = cloth_core::Integrator::VelocityVerlet;
-        let Some(sim) = create(backend, &scene) else { return };
-        assert_eq!(sim.fused_substeps(), 1, "{}: Verlet's substeps per dispatch", backend.name);
+        let Some(mut sim) = create(backend, &scene) else { return };
+        assert_eq!(sim.set_tiling(Tiling::On).unwrap(), 1, "{}: Verlet's substeps per dispatch", backend.name);
     }
 }
 
@@ -689,6 +741,7 @@ conformance! {
         driven_effects_move_the_cloth,
         an_absent_effect_equals_zero_strength,
         bit_exact_with_the_f32_reference,
+        tiled_and_one_substep_euler_agree,
         long_horizon_outcomes_agree,
         changing_the_grid_changes_the_vertex_count,
         moving_or_resizing_the_sphere_moves_the_rest_position,

@@ -110,9 +110,11 @@ fn run_on_gpu(backend: &str) {
     assert!(v["max_penetration_fraction_of_radius"].as_f64().unwrap() < 0.02, "{v}");
     assert_eq!(v["submissions_per_frame"], 1.0);
     assert_eq!(v["host_waits_per_frame"], 0.0);
-    // The drape (32², semi-implicit Euler) runs the tiled kernel: two substeps per dispatch.
+    // The drape (32², semi-implicit Euler) runs the tiled kernel on a GPU, two substeps per
+    // dispatch, and one substep per dispatch on a CPU implementation (lavapipe), where it is slower.
     if std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_none() && std::env::var_os("CLOTH_TILE").is_none() {
-        assert_eq!(v["substeps_per_dispatch"], 2, "{v}");
+        let expected = if v["adapter"].as_str().unwrap().contains("Cpu") { 1 } else { 2 };
+        assert_eq!(v["substeps_per_dispatch"], expected, "{v}");
     }
 }
 
@@ -219,8 +221,8 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
         .map(|l| {
             // The adapter is the one quoted field (and may hold commas).
             let (before, rest) = l.split_once(",\"").unwrap();
-            let (_, after) = rest.split_once("\",").unwrap();
-            let mut fields = vec![before.to_string(), String::new()];
+            let (adapter, after) = rest.split_once("\",").unwrap();
+            let mut fields = vec![before.to_string(), adapter.to_string()];
             fields.extend(after.split(',').map(str::to_string));
             fields
         })
@@ -233,7 +235,9 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
         assert_eq!(r[column("ceiling_fraction")].is_empty(), !gpu, "{r:?}");
         let tuned = std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_some() || std::env::var_os("CLOTH_TILE").is_some();
         if !tuned {
-            assert_eq!(r[column("fused_substeps")], if gpu { "2" } else { "1" }, "{r:?}");
+            // Tiles on a GPU; not on the CPU reference or a CPU implementation of Vulkan.
+            let fused = if gpu && !r[column("adapter")].contains("Cpu") { "2" } else { "1" };
+            assert_eq!(r[column("fused_substeps")], fused, "{r:?}");
         }
         if gpu {
             assert_eq!(r[column("submissions_per_frame")], "1.000", "{r:?}");

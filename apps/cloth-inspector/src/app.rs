@@ -200,6 +200,7 @@ impl InspectorApp {
                 device: rs.device.clone(),
                 queue: rs.queue.clone(),
                 adapter_description: format!("{} (eframe's device)", rs.adapter.get_info().name),
+                device_type: rs.adapter.get_info().device_type,
             };
             return Ok(Sim::Shared(Box::new(WgpuSimulator::on_device(scene, context)?)));
         }

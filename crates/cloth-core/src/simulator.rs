@@ -118,6 +118,19 @@ pub trait Simulator {
         1
     }
 
+    /// Chooses whether semi-implicit Euler fuses substeps with the tiled kernel
+    /// ([`crate::tiling::Tiling`]; a new simulator starts at `Auto`). Returns the substeps per
+    /// dispatch from now on: 1 where nothing is fused (other integrators, the CPU, a device that
+    /// cannot run the tiled kernel, or `Off`).
+    ///
+    /// # Errors
+    /// [`SimError::Unsupported`] for a tuning knob that is wrong, [`SimError::Device`] when the
+    /// tiled pipeline cannot be built.
+    fn set_tiling(&mut self, tiling: crate::tiling::Tiling) -> Result<u32, SimError> {
+        let _ = tiling;
+        Ok(1)
+    }
+
     /// Submissions and host waits of the last `advance` (no device access).
     fn last_advance_counts(&self) -> AdvanceCounts {
         AdvanceCounts::default()

@@ -54,13 +54,40 @@ pub const DEFAULT_TILES: [TileConfig; 2] =
 /// The largest of [`DEFAULT_TILES`].
 pub const DEFAULT_TILE: TileConfig = DEFAULT_TILES[0];
 
-/// Grids of more vertices than this run semi-implicit Euler one substep per dispatch unless the
-/// environment asks for tiles. On the H100 (docs/performance.md) the tiled kernel wins where the
+/// Grids of more vertices than this run semi-implicit Euler one substep per dispatch under
+/// [`Tiling::Auto`]. On the H100 (docs/performance.md) the tiled kernel wins where the
 /// per-substep launches dominate and loses where the per-substep kernel streams at a good share of
 /// the memory bandwidth (the tile's halo is loaded and recomputed, and only 192 of 512
 /// invocations write): at 53 substeps, 0.19 against 0.30 ms at 128², 0.30 against 0.32 ms at
 /// 256², 0.83 against 0.59 ms at 512² (wgpu).
 pub const MAX_TILED_VERTICES: u32 = 256 * 256;
+
+/// Whether semi-implicit Euler fuses substeps with the tiled kernel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Tiling {
+    /// Where it pays: on a GPU, for grids of up to [`MAX_TILED_VERTICES`]. Not on a CPU
+    /// implementation of Vulkan (lavapipe), where the halo's recomputation and the barriers cost
+    /// real time and a dispatch little: there the tiled kernel measured 2 to 6 times slower. The
+    /// environment knobs `CLOTH_FUSED_SUBSTEPS` and `CLOTH_TILE`, when set, decide instead (on
+    /// any device and grid).
+    #[default]
+    Auto,
+    /// Wherever the device can run it, on any grid (the tile's shape still follows the knobs).
+    On,
+    /// Never: one dispatch per substep.
+    Off,
+}
+
+/// What a device allows a workgroup, for [`tile_config`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceLimits {
+    /// Invocations a workgroup may have (the smaller of the total and `x × y`).
+    pub invocations: u32,
+    /// Bytes of workgroup memory.
+    pub workgroup_memory: u32,
+    /// Whether the device is a CPU implementation (e.g. lavapipe).
+    pub cpu: bool,
+}
 
 impl TileConfig {
     /// Cells each side of the output block that are loaded but not written: the bend springs
@@ -137,24 +164,29 @@ impl TileConfig {
     }
 }
 
-/// The tile the GPU backends use for semi-implicit Euler on a grid of `vertices` on a device that
-/// allows `workgroup_memory` bytes of workgroup memory and `invocations` invocations a workgroup:
-/// the first of [`DEFAULT_TILES`] that fits, for grids of at most [`MAX_TILED_VERTICES`]; `None`
-/// (tiling off) for larger grids or where no tile fits. The environment variables
-/// `CLOTH_FUSED_SUBSTEPS` (substeps per dispatch; `0` turns tiling off, so every substep is its
-/// own dispatch) and `CLOTH_TILE` (`WIDTHxHEIGHT`, e.g. `32x16`) override that, for any grid:
-/// tuning knobs for benchmarks.
+/// The tile the GPU backends use for semi-implicit Euler on a grid of `vertices` on a device with
+/// `limits`, as `tiling` asks: the first of [`DEFAULT_TILES`] the device fits, or `None` (one
+/// dispatch per substep) where tiling is off, does not pay ([`Tiling::Auto`]) or no tile fits.
+/// The environment variables `CLOTH_FUSED_SUBSTEPS` (substeps per dispatch; `0` turns tiling off)
+/// and `CLOTH_TILE` (`WIDTHxHEIGHT`, e.g. `32x16`) set the tile's shape, and under
+/// [`Tiling::Auto`] turn tiling on for any device and grid: tuning knobs for benchmarks.
 ///
 /// # Errors
 /// The variable and its value when it does not parse or the tile it makes is not usable with
 /// the device's workgroup memory or invocations.
-pub fn tile_config(vertices: u32, invocations: u32, workgroup_memory: u32) -> Result<Option<TileConfig>, String> {
-    let fits = |t: &TileConfig| t.workgroup_bytes() <= workgroup_memory && t.cells() <= invocations;
+pub fn tile_config(tiling: Tiling, vertices: u32, limits: DeviceLimits) -> Result<Option<TileConfig>, String> {
+    let fits = |t: &TileConfig| t.workgroup_bytes() <= limits.workgroup_memory && t.cells() <= limits.invocations;
     let fitting = DEFAULT_TILES.iter().find(|t| fits(t) && t.check().is_ok());
     let explicit = ["CLOTH_FUSED_SUBSTEPS", "CLOTH_TILE"]
         .iter()
         .any(|name| std::env::var(name).is_ok_and(|text| !text.trim().is_empty()));
-    if !explicit && vertices > MAX_TILED_VERTICES {
+    let pays = !limits.cpu && vertices <= MAX_TILED_VERTICES;
+    let wanted = match tiling {
+        Tiling::Off => false,
+        Tiling::On => true,
+        Tiling::Auto => explicit || pays,
+    };
+    if !wanted {
         return Ok(None);
     }
     let Some(mut tile) = fitting.copied().or(explicit.then_some(DEFAULT_TILE)) else {
@@ -183,11 +215,13 @@ pub fn tile_config(vertices: u32, invocations: u32, workgroup_memory: u32) -> Re
     if !fits(&tile) {
         return Err(format!(
             "a {}×{} tile (CLOTH_TILE): {} bytes of workgroup memory and {} invocations, and the device allows \
-             {workgroup_memory} and {invocations}",
+             {} and {}",
             tile.width,
             tile.height,
             tile.workgroup_bytes(),
-            tile.cells()
+            tile.cells(),
+            limits.workgroup_memory,
+            limits.invocations
         ));
     }
     Ok(Some(tile))
@@ -199,11 +233,11 @@ pub fn tile_config(vertices: u32, invocations: u32, workgroup_memory: u32) -> Re
 /// [`SimError::Unsupported`] naming the variables, their values and the fix.
 pub fn checked_tile_config(
     backend: &'static str,
+    tiling: Tiling,
     vertices: u32,
-    invocations: u32,
-    workgroup_memory: u32,
+    limits: DeviceLimits,
 ) -> Result<Option<TileConfig>, SimError> {
-    tile_config(vertices, invocations, workgroup_memory).map_err(|what| SimError::Unsupported {
+    tile_config(tiling, vertices, limits).map_err(|what| SimError::Unsupported {
         backend,
         what,
         fix: "unset CLOTH_FUSED_SUBSTEPS and CLOTH_TILE for the default tile (the largest that fits the device), \
@@ -250,15 +284,25 @@ mod tests {
     }
 
     #[test]
-    fn large_grids_and_small_devices_run_untiled() {
+    fn the_policy_tiles_small_grids_on_gpus_and_what_is_asked() {
         // (The environment knobs are not set in the tests.)
         if std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_some() || std::env::var_os("CLOTH_TILE").is_some() {
             return;
         }
-        assert_eq!(tile_config(128 * 128, 1024, 48 * 1024), Ok(Some(DEFAULT_TILE)));
-        assert_eq!(tile_config(128 * 128, 256, 16 * 1024), Ok(Some(DEFAULT_TILES[1])));
-        assert_eq!(tile_config(128 * 128, 128, 48 * 1024), Ok(None));
-        assert_eq!(tile_config(MAX_TILED_VERTICES + 1, 1024, 48 * 1024), Ok(None));
+        let gpu = DeviceLimits { invocations: 1024, workgroup_memory: 48 * 1024, cpu: false };
+        let small = DeviceLimits { invocations: 256, workgroup_memory: 16 * 1024, cpu: false };
+        let tiny = DeviceLimits { invocations: 128, workgroup_memory: 48 * 1024, cpu: false };
+        let lavapipe = DeviceLimits { invocations: 1024, workgroup_memory: 32 * 1024, cpu: true };
+        let n = 128 * 128;
+        assert_eq!(tile_config(Tiling::Auto, n, gpu), Ok(Some(DEFAULT_TILE)));
+        assert_eq!(tile_config(Tiling::Auto, n, small), Ok(Some(DEFAULT_TILES[1])));
+        assert_eq!(tile_config(Tiling::Auto, n, tiny), Ok(None));
+        assert_eq!(tile_config(Tiling::Auto, MAX_TILED_VERTICES + 1, gpu), Ok(None));
+        assert_eq!(tile_config(Tiling::On, MAX_TILED_VERTICES + 1, gpu), Ok(Some(DEFAULT_TILE)));
+        assert_eq!(tile_config(Tiling::Off, n, gpu), Ok(None));
+        // A CPU implementation: not by default, but when asked.
+        assert_eq!(tile_config(Tiling::Auto, n, lavapipe), Ok(None));
+        assert_eq!(tile_config(Tiling::On, n, lavapipe), Ok(Some(DEFAULT_TILE)));
     }
 
     #[test]

@@ -29,7 +29,7 @@ use vulkano::pipeline::layout::PipelineDescriptorSetLayoutCreateInfo;
 use vulkano::pipeline::{ComputePipeline, PipelineLayout, PipelineShaderStageCreateInfo};
 use vulkano::shader::{ShaderModule, ShaderModuleCreateInfo, SpecializationConstant};
 
-use cloth_core::tiling::TileConfig;
+use cloth_core::tiling::{DeviceLimits, TileConfig, Tiling};
 
 use crate::{BACKEND_NAME, STEP_SPIRV, TILED_STEP_SPIRV, XPBD_SPIRV};
 
@@ -262,7 +262,7 @@ pub(crate) fn plan(
                     Ok(SubstepPlan {
                         pipelines: vec![kernel.step_pipeline(0, block_width)?],
                         passes: vec![pass(0, sets)],
-                        tiled: tiled_pass(device, scene, state, descriptors)?,
+                        tiled: tiled_pass(device, scene, state, descriptors, Tiling::Auto)?,
                         uploads,
                     })
                 }
@@ -367,24 +367,34 @@ pub(crate) fn plan(
     }
 }
 
-/// The tile semi-implicit Euler uses for a grid of `vertices` on `device` (`cloth_core::tiling`:
-/// the largest default tile the device's workgroup memory and invocations allow, on grids where
-/// tiling pays), or none: every substep is then its own dispatch, as exact.
-pub(crate) fn usable_tile(device: &Arc<Device>, vertices: u32) -> Result<Option<TileConfig>, SimError> {
-    let limits = device.physical_device().properties();
-    let [x, y, _] = limits.max_compute_work_group_size;
-    let invocations = limits.max_compute_work_group_invocations.min(x * y);
-    cloth_core::tiling::checked_tile_config(BACKEND_NAME, vertices, invocations, limits.max_compute_shared_memory_size)
+/// The tile semi-implicit Euler uses for a grid of `vertices` on `device` as `tiling` asks
+/// (`cloth_core::tiling`: the largest default tile the device's shared memory and invocations
+/// allow), or none: every substep is then its own dispatch, as exact.
+pub(crate) fn usable_tile(device: &Arc<Device>, tiling: Tiling, vertices: u32) -> Result<Option<TileConfig>, SimError> {
+    let properties = device.physical_device().properties();
+    let [x, y, _] = properties.max_compute_work_group_size;
+    let limits = DeviceLimits {
+        invocations: properties.max_compute_work_group_invocations.min(x * y),
+        workgroup_memory: properties.max_compute_shared_memory_size,
+        cpu: properties.device_type == vulkano::device::physical::PhysicalDeviceType::Cpu,
+    };
+    cloth_core::tiling::checked_tile_config(BACKEND_NAME, tiling, vertices, limits)
 }
 
-/// The tiled pass of semi-implicit Euler (`cloth_step_tiled.comp`), if the device can run it.
-fn tiled_pass(
+/// The tiled pass of semi-implicit Euler (`cloth_step_tiled.comp`) as `tiling` asks, if the scene
+/// integrates with semi-implicit Euler and the device can run it.
+pub(crate) fn tiled_pass(
     device: &Arc<Device>,
     scene: &Scene,
     state: &StateBuffers,
     descriptors: &Arc<StandardDescriptorSetAllocator>,
+    tiling: Tiling,
 ) -> Result<Option<TiledPass>, SimError> {
-    let Some(tile) = usable_tile(device, scene.cloth.resolution[0] * scene.cloth.resolution[1])? else {
+    if scene.integrator != Integrator::SemiImplicitEuler {
+        return Ok(None);
+    }
+    let [nx, ny] = scene.cloth.resolution;
+    let Some(tile) = usable_tile(device, tiling, nx * ny)? else {
         return Ok(None);
     };
     let kernel = Kernel::new(device, scene, TILED_STEP_SPIRV, None)?;
@@ -404,7 +414,7 @@ fn tiled_pass(
         )
     };
     let values = [tile.width, tile.height, tile.cells(), tile.substeps];
-    let (x, y) = tile.workgroups(scene.cloth.resolution[0], scene.cloth.resolution[1]);
+    let (x, y) = tile.workgroups(nx, ny);
     Ok(Some(TiledPass {
         pipeline: kernel.pipeline_with(TILE_CONSTANT_IDS.into_iter().zip(values))?,
         sets: [set(0)?, set(1)?],

@@ -33,6 +33,8 @@ pub struct VulkanoSimulator {
     /// An empty automatic command buffer: the resource usage the frames report (`raw.rs`).
     no_resources: Arc<PrimaryAutoCommandBuffer>,
     buffers: StateBuffers,
+    /// Allocates the descriptor sets of a tiled pass built later (`set_tiling`).
+    descriptors: Arc<StandardDescriptorSetAllocator>,
     memory: Arc<StandardMemoryAllocator>,
     commands: Arc<StandardCommandBufferAllocator>,
     /// The last submission, if not yet waited for.
@@ -135,6 +137,7 @@ impl VulkanoSimulator {
             .and_then(|b| b.build())
             .map_err(|e| device_error(format!("command buffer: {e}")))?,
             buffers,
+            descriptors,
             memory,
             commands,
             in_flight: None,
@@ -417,6 +420,15 @@ impl Simulator for VulkanoSimulator {
 
     fn fused_substeps(&self) -> u32 {
         self.plan.tiled.as_ref().map_or(1, |tiled| tiled.substeps)
+    }
+
+    fn set_tiling(&mut self, tiling: cloth_core::tiling::Tiling) -> Result<u32, SimError> {
+        // The recorded frames hold no references to the pipelines (raw.rs): none may be in
+        // flight when the old tiled pass is dropped.
+        self.wait()?;
+        let device = self.context.device.clone();
+        self.plan.tiled = crate::passes::tiled_pass(&device, &self.scene, &self.buffers, &self.descriptors, tiling)?;
+        Ok(self.fused_substeps())
     }
 
     fn advance(&mut self, frames: u32) -> Result<(), SimError> {

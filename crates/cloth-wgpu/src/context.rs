@@ -28,6 +28,9 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     /// The adapter, in words: name, backend, type, driver.
     pub adapter_description: String,
+    /// The adapter's type (semi-implicit Euler's tiled kernel is not used by default on a CPU:
+    /// `cloth_core::tiling::Tiling::Auto`).
+    pub device_type: wgpu::DeviceType,
 }
 
 fn describe(info: &wgpu::AdapterInfo) -> String {
@@ -138,6 +141,7 @@ impl GpuContext {
             trace: wgpu::Trace::Off,
         }))
         .map_err(|e| unavailable(format!("cannot open a device on {}: {e}", adapter.get_info().name)))?;
-        Ok(Self { device, queue, adapter_description: describe(&adapter.get_info()) })
+        let info = adapter.get_info();
+        Ok(Self { device, queue, adapter_description: describe(&info), device_type: info.device_type })
     }
 }

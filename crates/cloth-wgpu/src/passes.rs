@@ -18,7 +18,7 @@ use cloth_core::layout::{GpuBuffers, GpuColorRange, GpuSimParams};
 use cloth_core::{Effect, Integrator, Scene, SimError};
 use wgpu::util::DeviceExt;
 
-use cloth_core::tiling::TileConfig;
+use cloth_core::tiling::{DeviceLimits, TileConfig, Tiling};
 
 use crate::{BACKEND_NAME, STEP_SHADER, XPBD_SHADER};
 
@@ -203,12 +203,14 @@ impl<'a> Kernel<'a> {
     }
 }
 
-/// Builds the passes of one substep of the scene's integrator.
+/// Builds the passes of one substep of the scene's integrator (`cpu`: the device is a CPU
+/// implementation, for the tiling policy).
 pub(crate) fn plan(
     device: &wgpu::Device,
     scene: &Scene,
     data: &GpuBuffers,
     state: &StateBuffers,
+    cpu: bool,
 ) -> Result<SubstepPlan, SimError> {
     let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
     let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
@@ -285,7 +287,7 @@ pub(crate) fn plan(
                             ),
                         ],
                         passes: vec![pass(0, groups)],
-                        tiled: tiled_pass(device, scene, state)?,
+                        tiled: tiled_pass(device, scene, state, Tiling::Auto, cpu)?,
                     })
                 }
                 Integrator::VelocityVerlet => {
@@ -432,25 +434,37 @@ pub(crate) fn plan(
     }
 }
 
-/// The tile semi-implicit Euler uses for a grid of `vertices` on `device` (`cloth_core::tiling`:
-/// the largest default tile the device's workgroup memory and invocations allow, on grids where
-/// tiling pays), or none: every substep is then its own dispatch, as exact.
-pub(crate) fn usable_tile(device: &wgpu::Device, vertices: u32) -> Result<Option<TileConfig>, SimError> {
+/// The tile semi-implicit Euler uses for a grid of `vertices` on `device` as `tiling` asks
+/// (`cloth_core::tiling`: the largest default tile the device's workgroup memory and invocations
+/// allow), or none: every substep is then its own dispatch, as exact.
+pub(crate) fn usable_tile(
+    device: &wgpu::Device,
+    tiling: Tiling,
+    vertices: u32,
+    cpu: bool,
+) -> Result<Option<TileConfig>, SimError> {
     let limits = device.limits();
     let invocations = limits
         .max_compute_invocations_per_workgroup
         .min(limits.max_compute_workgroup_size_x * limits.max_compute_workgroup_size_y);
-    cloth_core::tiling::checked_tile_config(
-        BACKEND_NAME,
-        vertices,
-        invocations,
-        limits.max_compute_workgroup_storage_size,
-    )
+    let device_limits = DeviceLimits { invocations, workgroup_memory: limits.max_compute_workgroup_storage_size, cpu };
+    cloth_core::tiling::checked_tile_config(BACKEND_NAME, tiling, vertices, device_limits)
 }
 
-/// The tiled pass of semi-implicit Euler (`cloth_step_tiled.wgsl`), if the device can run it.
-fn tiled_pass(device: &wgpu::Device, scene: &Scene, state: &StateBuffers) -> Result<Option<TiledPass>, SimError> {
-    let Some(tile) = usable_tile(device, scene.cloth.resolution[0] * scene.cloth.resolution[1])? else {
+/// The tiled pass of semi-implicit Euler (`cloth_step_tiled.wgsl`) as `tiling` asks, if the scene
+/// integrates with semi-implicit Euler and the device can run it.
+pub(crate) fn tiled_pass(
+    device: &wgpu::Device,
+    scene: &Scene,
+    state: &StateBuffers,
+    tiling: Tiling,
+    cpu: bool,
+) -> Result<Option<TiledPass>, SimError> {
+    if scene.integrator != Integrator::SemiImplicitEuler {
+        return Ok(None);
+    }
+    let [nx, ny] = scene.cloth.resolution;
+    let Some(tile) = usable_tile(device, tiling, nx * ny, cpu)? else {
         return Ok(None);
     };
     let source = crate::tiled_shader_source(&tile);
@@ -477,8 +491,6 @@ fn tiled_pass(device: &wgpu::Device, scene: &Scene, state: &StateBuffers) -> Res
             &[&state.params, &state.spheres, &p[k], &v[k], &p[1 - k], &v[1 - k], &state.max_penetration],
         )
     });
-    let nx = scene.cloth.resolution[0];
-    let ny = scene.cloth.resolution[1];
     Ok(Some(TiledPass {
         pipeline: kernel.pipeline("cloth tiled Euler substeps pipeline", &[]),
         groups,

@@ -86,7 +86,7 @@ impl WgpuSimulator {
             ],
             max_penetration: init("cloth max penetration", &[0u8; 4], storage),
         };
-        let plan = crate::passes::plan(device, scene, &data, &buffers);
+        let plan = crate::passes::plan(device, scene, &data, &buffers, context.device_type == wgpu::DeviceType::Cpu);
         if let Some(e) = pollster::block_on(oom_scope.pop()) {
             return Err(device_error(format!("out of device memory while creating the buffers: {e}")));
         }
@@ -241,6 +241,18 @@ impl Simulator for WgpuSimulator {
 
     fn fused_substeps(&self) -> u32 {
         self.plan.tiled.as_ref().map_or(1, |tiled| tiled.substeps)
+    }
+
+    fn set_tiling(&mut self, tiling: cloth_core::tiling::Tiling) -> Result<u32, SimError> {
+        let cpu = self.context.device_type == wgpu::DeviceType::Cpu;
+        let device = &self.context.device;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let tiled = crate::passes::tiled_pass(device, &self.scene, &self.buffers, tiling, cpu);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(device_error(format!("creating the tiled pipeline failed: {e}")));
+        }
+        self.plan.tiled = tiled?;
+        Ok(self.fused_substeps())
     }
 
     fn advance(&mut self, frames: u32) -> Result<(), SimError> {
