@@ -35,6 +35,10 @@ pub struct BenchArgs {
     /// Also write the rows to this CSV file.
     #[arg(long)]
     csv: Option<std::path::PathBuf>,
+    /// Whether semi-implicit Euler fuses substeps with the tiled kernel: `auto` (on GPUs, for
+    /// grids of up to 256²), `on` (wherever the device can), `off` (one dispatch per substep).
+    #[arg(long, value_enum, default_value_t = TilingArg::Auto)]
+    tiling: TilingArg,
     /// Instead, print what each effect costs: the bare cloth, then each effect of the scene
     /// added in turn (ms per frame per backend, at each of `--grids`; the scene's own
     /// substeps unless `--substeps` is given).
@@ -43,6 +47,27 @@ pub struct BenchArgs {
     /// The scene of `--effects` (default: scenes/flag.ron, which has every effect).
     #[arg(long, requires = "effects")]
     scene: Option<std::path::PathBuf>,
+}
+
+/// `--tiling`: [`cloth_core::tiling::Tiling`] on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TilingArg {
+    /// On GPUs, for grids of up to 256² (the default).
+    Auto,
+    /// Wherever the device can run the tiled kernel.
+    On,
+    /// One dispatch per substep.
+    Off,
+}
+
+impl From<TilingArg> for cloth_core::tiling::Tiling {
+    fn from(arg: TilingArg) -> Self {
+        match arg {
+            TilingArg::Auto => Self::Auto,
+            TilingArg::On => Self::On,
+            TilingArg::Off => Self::Off,
+        }
+    }
 }
 
 /// The default scene of `--effects`: every effect at once (a copy of `scenes/flag.ron`).
@@ -122,7 +147,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
         for &n in &args.grids {
             for &rule in &rules {
                 bar.set_message(format!("{} {n}² {rule}", backend.name));
-                let result = throughput::measure(backend, args.adapter.as_deref(), n, rule, args.frames);
+                let result =
+                    throughput::measure(backend, args.adapter.as_deref(), n, rule, args.frames, args.tiling.into());
                 bar.inc(1);
                 let row = match result {
                     Ok(row) => row,

@@ -251,3 +251,44 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
     assert_eq!(scaled, ["3", "5", "3", "5", "3", "5"]);
     let _ = std::fs::remove_file(csv);
 }
+
+/// `cloth bench --tiling on|off` chooses the tiled kernel for semi-implicit Euler on every GPU
+/// backend, whatever the device (lavapipe does not tile by default): the CSV's fused substeps.
+#[test]
+fn bench_tiling_flag_turns_the_tiled_kernel_on_and_off() {
+    if std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_some() || std::env::var_os("CLOTH_TILE").is_some() {
+        return;
+    }
+    for (tiling, fused) in [("on", "2"), ("off", "1")] {
+        let csv = std::env::temp_dir().join(format!("cloth-bench-tiling-{tiling}-{}.csv", std::process::id()));
+        let out = cloth(&[
+            "bench",
+            "--backends",
+            "wgpu,vulkano",
+            "--grids",
+            "40",
+            "--substeps",
+            "4",
+            "--frames",
+            "1",
+            "--tiling",
+            tiling,
+            "--csv",
+            csv.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        if stdout.contains("skipped") && std::env::var_os("CI").is_none() {
+            eprintln!("SKIPPED: no GPU adapter here: {stdout}");
+            return;
+        }
+        let table = std::fs::read_to_string(&csv).unwrap();
+        let rows: Vec<&str> = table.lines().skip(1).collect();
+        assert_eq!(rows.len(), 2, "{table}");
+        for row in rows {
+            assert_eq!(row.rsplit(',').next(), Some(fused), "--tiling {tiling}: {row}");
+        }
+        let _ = std::fs::remove_file(csv);
+    }
+}

@@ -119,7 +119,8 @@ impl ThroughputRow {
 
 /// Measures one row: one warm-up frame (pipelines, first-use allocations), then `frames` frames
 /// each advanced by its own `advance(1)` (one submission, no wait), with GPU timing on where the
-/// backend has it, then one wait for the device.
+/// backend has it, then one wait for the device. `tiling` chooses whether semi-implicit Euler
+/// fuses substeps with the tiled kernel ([`cloth_core::Simulator::set_tiling`]).
 ///
 /// # Errors
 /// What creating or running the simulator returns (e.g. [`SimError::Unavailable`] without an
@@ -130,10 +131,12 @@ pub fn measure(
     n: u32,
     rule: StepRule,
     frames: u32,
+    tiling: cloth_core::tiling::Tiling,
 ) -> Result<ThroughputRow, SimError> {
     let scene = bench_scene(n, rule);
     let frames = frames.max(1);
     let mut sim = (backend.create)(&scene, adapter)?;
+    sim.set_tiling(tiling)?;
     sim.advance(1)?;
     sim.diagnostics()?;
     let gpu_timed = sim.set_gpu_timing(true);
@@ -204,7 +207,7 @@ mod tests {
     #[test]
     fn a_cpu_row_counts_the_work_and_no_device_traffic() {
         let cpu = crate::find("cpu").unwrap();
-        let row = measure(&cpu, None, 16, StepRule::Fixed(4), 3).unwrap();
+        let row = measure(&cpu, None, 16, StepRule::Fixed(4), 3, cloth_core::tiling::Tiling::Auto).unwrap();
         assert_eq!((row.grid, row.substeps, row.frames), (16, 4, 3));
         assert!(row.finite && row.gpu_ms_per_frame.is_none());
         assert_eq!((row.submissions_per_frame, row.host_waits_per_frame), (0.0, 0.0));
