@@ -46,6 +46,15 @@ vec3 tile_velocity(uint c) {
     return vec3(tile_vx[c], tile_vy[c], tile_vz[c]);
 }
 
+void set_tile_state(uint c, vec3 x, vec3 v) {
+    tile_px[c] = x.x;
+    tile_py[c] = x.y;
+    tile_pz[c] = x.z;
+    tile_vx[c] = v.x;
+    tile_vy[c] = v.y;
+    tile_vz[c] = v.z;
+}
+
 // cloth_step.comp's add_spring, the neighbour read from the tile: (i, j) is cell c's vertex.
 void add_tile_spring(inout vec3 force, uint c, int i, int j, int di, int dj, uint kind, float rest_length, vec3 x, vec3 v) {
     int ni = i + di;
@@ -122,12 +131,7 @@ void main() {
         index = uint(j) * params.grid_nx + uint(i);
         vec4 p = positions_in[index];
         vec4 state = velocities_in[index];
-        tile_px[c] = p.x;
-        tile_py[c] = p.y;
-        tile_pz[c] = p.z;
-        tile_vx[c] = state.x;
-        tile_vy[c] = state.y;
-        tile_vz[c] = state.z;
+        set_tile_state(c, p.xyz, state.xyz);
         free_w = p.w;
         t = state.w;
     }
@@ -197,12 +201,7 @@ void main() {
         }
         barrier();
         if (is_active) {
-            tile_px[c] = x_new.x;
-            tile_py[c] = x_new.y;
-            tile_pz[c] = x_new.z;
-            tile_vx[c] = v_new.x;
-            tile_vy[c] = v_new.y;
-            tile_vz[c] = v_new.z;
+            set_tile_state(c, x_new, v_new);
         }
         barrier();
     }

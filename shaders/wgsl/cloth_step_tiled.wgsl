@@ -38,6 +38,15 @@ fn tile_velocity(c: u32) -> vec3<f32> {
     return vec3<f32>(tile_vx[c], tile_vy[c], tile_vz[c]);
 }
 
+fn set_tile_state(c: u32, x: vec3<f32>, v: vec3<f32>) {
+    tile_px[c] = x.x;
+    tile_py[c] = x.y;
+    tile_pz[c] = x.z;
+    tile_vx[c] = v.x;
+    tile_vy[c] = v.y;
+    tile_vz[c] = v.z;
+}
+
 // cloth_step.wgsl's add_spring, the neighbour read from the tile: (i, j) is cell c's vertex.
 fn add_tile_spring(force: ptr<function, vec3<f32>>, c: u32, i: i32, j: i32, di: i32, dj: i32, kind: u32,
                    rest_length: f32, x: vec3<f32>, v: vec3<f32>) {
@@ -119,12 +128,7 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
         index = u32(j) * params.grid_nx + u32(i);
         let p = positions_in[index];
         let state = velocities_in[index];
-        tile_px[c] = p.x;
-        tile_py[c] = p.y;
-        tile_pz[c] = p.z;
-        tile_vx[c] = state.x;
-        tile_vy[c] = state.y;
-        tile_vz[c] = state.z;
+        set_tile_state(c, p.xyz, state.xyz);
         free_w = p.w;
         t = state.w;
     }
@@ -193,12 +197,7 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
         }
         workgroupBarrier();
         if (is_active) {
-            tile_px[c] = x_new.x;
-            tile_py[c] = x_new.y;
-            tile_pz[c] = x_new.z;
-            tile_vx[c] = v_new.x;
-            tile_vy[c] = v_new.y;
-            tile_vz[c] = v_new.z;
+            set_tile_state(c, x_new, v_new);
         }
         workgroupBarrier();
     }

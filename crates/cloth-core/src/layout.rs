@@ -516,6 +516,16 @@ pub fn block_width(threads: u32) -> Result<u32, String> {
     Ok(width.min(threads))
 }
 
+/// Invocations the per-substep kernels dispatch for an `nx × ny` grid at `threads` a workgroup:
+/// one per vertex, or with `block_width` > 0 whole `block_width × (threads / block_width)`
+/// blocks covering the grid (the kernels skip the invocations past its edges).
+pub fn block_invocations(nx: u32, ny: u32, block_width: u32, threads: u32) -> u32 {
+    if block_width == 0 {
+        return nx * ny;
+    }
+    nx.div_ceil(block_width) * ny.div_ceil(threads / block_width) * threads
+}
+
 /// [`workgroup_size`] as the error a GPU backend named `backend` returns when the knob (or
 /// `CLOTH_BLOCK_WIDTH`, [`block_width`]) is wrong.
 ///

@@ -116,11 +116,7 @@ pub(crate) fn workgroups(items: u32, max_x: u32) -> [u32; 3] {
 /// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
 fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> [u32; 3] {
     let [nx, ny] = scene.cloth.resolution;
-    if block_width == 0 {
-        return workgroups(nx * ny, max_x);
-    }
-    let rows = workgroup_size() / block_width;
-    workgroups(nx.div_ceil(block_width) * ny.div_ceil(rows) * workgroup_size(), max_x)
+    workgroups(cloth_core::layout::block_invocations(nx, ny, block_width, workgroup_size()), max_x)
 }
 
 /// A SPIR-V module whose pipelines share one layout (reflected from the module; XPBD's colour

@@ -111,15 +111,23 @@ pub(crate) fn workgroups(items: u32, max_x: u32) -> (u32, u32) {
     if groups <= max_x { (groups, 1) } else { (max_x, groups.div_ceil(max_x)) }
 }
 
+/// The bindings 0-6 of both force kernels (`cloth_step.wgsl`, `cloth_step_tiled.wgsl`): the
+/// parameters, the spheres, the state read and written, the deepest penetration.
+const STATE_BINDINGS: [Binding; 7] = [
+    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
+    Binding::Storage { read_only: true },  // spheres
+    Binding::Storage { read_only: true },  // positions in
+    Binding::Storage { read_only: true },  // velocities in
+    Binding::Storage { read_only: false }, // positions out
+    Binding::Storage { read_only: false }, // velocities out
+    Binding::Storage { read_only: false }, // deepest penetration
+];
+
 /// Workgroups of the per-substep kernel when each updates a `block_width`-wide block of the grid
 /// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
 fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> (u32, u32) {
     let [nx, ny] = scene.cloth.resolution;
-    if block_width == 0 {
-        return workgroups(nx * ny, max_x);
-    }
-    let rows = workgroup_size() / block_width;
-    workgroups(nx.div_ceil(block_width) * ny.div_ceil(rows) * workgroup_size(), max_x)
+    workgroups(cloth_core::layout::block_invocations(nx, ny, block_width, workgroup_size()), max_x)
 }
 
 /// A compiled kernel: its module's pipelines share one bind group layout.
@@ -248,16 +256,7 @@ pub(crate) fn plan(
                 "cloth_step.wgsl",
                 STEP_SHADER,
                 "substep",
-                &[
-                    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
-                    Binding::Storage { read_only: true },  // spheres
-                    Binding::Storage { read_only: true },  // positions in
-                    Binding::Storage { read_only: true },  // velocities in
-                    Binding::Storage { read_only: false }, // positions out
-                    Binding::Storage { read_only: false }, // velocities out
-                    Binding::Storage { read_only: false }, // deepest penetration
-                    Binding::Storage { read_only: false }, // RK4 scratch
-                ],
+                &[STATE_BINDINGS.as_slice(), &[Binding::Storage { read_only: false }]].concat(), // + RK4 scratch
             );
             let group = |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4]| {
                 kernel.bind_group(
@@ -468,22 +467,7 @@ pub(crate) fn tiled_pass(
         return Ok(None);
     };
     let source = crate::tiled_shader_source(&tile);
-    let kernel = Kernel::new(
-        device,
-        scene,
-        "cloth_step_tiled.wgsl",
-        &source,
-        "substeps",
-        &[
-            Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
-            Binding::Storage { read_only: true },  // spheres
-            Binding::Storage { read_only: true },  // positions in
-            Binding::Storage { read_only: true },  // velocities in
-            Binding::Storage { read_only: false }, // positions out
-            Binding::Storage { read_only: false }, // velocities out
-            Binding::Storage { read_only: false }, // deepest penetration
-        ],
-    );
+    let kernel = Kernel::new(device, scene, "cloth_step_tiled.wgsl", &source, "substeps", &STATE_BINDINGS);
     let [p, v] = [&state.positions, &state.velocities];
     let groups = [0, 1].map(|k| {
         kernel.bind_group(
