@@ -35,15 +35,22 @@ layout(set = 0, binding = 7, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
 
 #include "grid.glsl"
 
-// Adds to `force` the spring from vertex (i, j) to its grid neighbour (i + di, j + dj), if that
-// neighbour exists: Hooke plus damping, with the kind's k and c_d and the given rest length.
-void add_spring(inout vec3 force, int i, int j, int di, int dj, uint kind, float rest_length, vec3 x, vec3 v) {
-    int ni = i + di;
-    int nj = j + dj;
-    if (ni < 0 || nj < 0 || ni >= int(params.grid_nx) || nj >= int(params.grid_ny)) {
-        return;
+// Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
+// (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
+// the given rest length. `interior`: (i, j) is two or more vertices from every edge, so every
+// neighbour exists and its index is an offset from `index` (no edge checks: measured 5% of the
+// H100's frame).
+void add_spring(inout vec3 force, int i, int j, uint index, bool interior, int di, int dj, uint kind,
+                float rest_length, vec3 x, vec3 v) {
+    uint other = uint(int(index) + dj * int(params.grid_nx) + di);
+    if (!interior) {
+        int ni = i + di;
+        int nj = j + dj;
+        if (ni < 0 || nj < 0 || ni >= int(params.grid_nx) || nj >= int(params.grid_ny)) {
+            return;
+        }
+        other = uint(nj) * params.grid_nx + uint(ni);
     }
-    uint other = uint(nj) * params.grid_nx + uint(ni);
     float damping = 0.0;
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
@@ -58,27 +65,26 @@ void add_spring(inout vec3 force, int i, int j, int di, int dj, uint kind, float
 // round alike: kind by kind, and within a kind the springs from lower-indexed vertices first:
 // structural (0,-1) (-1,0) (+1,0) (0,+1); shear (-1,-1) (+1,-1) (+1,+1) (-1,+1); bend (0,-2)
 // (-2,0) (+2,0) (0,+2).
-void add_stencil_springs(inout vec3 force, uint index, vec3 x, vec3 v) {
-    int i = int(index % params.grid_nx);
-    int j = int(index / params.grid_nx);
+void add_stencil_springs(inout vec3 force, int i, int j, uint index, vec3 x, vec3 v) {
+    bool interior = i >= 2 && j >= 2 && i + 2 < int(params.grid_nx) && j + 2 < int(params.grid_ny);
     vec4 rest = params.rest_lengths;
     if (EFFECT_STRUCTURAL) {
-        add_spring(force, i, j, 0, -1, 0u, rest.y, x, v);
-        add_spring(force, i, j, -1, 0, 0u, rest.x, x, v);
-        add_spring(force, i, j, 1, 0, 0u, rest.x, x, v);
-        add_spring(force, i, j, 0, 1, 0u, rest.y, x, v);
+        add_spring(force, i, j, index, interior, 0, -1, 0u, rest.y, x, v);
+        add_spring(force, i, j, index, interior, -1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, index, interior, 1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, index, interior, 0, 1, 0u, rest.y, x, v);
     }
     if (EFFECT_SHEAR) {
-        add_spring(force, i, j, -1, -1, 1u, rest.z, x, v);
-        add_spring(force, i, j, 1, -1, 1u, rest.z, x, v);
-        add_spring(force, i, j, 1, 1, 1u, rest.z, x, v);
-        add_spring(force, i, j, -1, 1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, -1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, 1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, 1, 1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, -1, 1, 1u, rest.z, x, v);
     }
     if (EFFECT_BEND) {
-        add_spring(force, i, j, 0, -2, 2u, 2.0 * rest.y, x, v);
-        add_spring(force, i, j, -2, 0, 2u, 2.0 * rest.x, x, v);
-        add_spring(force, i, j, 2, 0, 2u, 2.0 * rest.x, x, v);
-        add_spring(force, i, j, 0, 2, 2u, 2.0 * rest.y, x, v);
+        add_spring(force, i, j, index, interior, 0, -2, 2u, 2.0 * rest.y, x, v);
+        add_spring(force, i, j, index, interior, -2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, index, interior, 2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, index, interior, 0, 2, 2u, 2.0 * rest.y, x, v);
     }
 }
 
@@ -90,6 +96,9 @@ layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
 void main() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
     uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    // The vertex's grid coordinates.
+    uint vi = i % params.grid_nx;
+    uint vj = i / params.grid_nx;
     if (BLOCK_WIDTH != 0u) {
         // (max: not a specialization-constant operation, so vulkano does not fold a quotient by
         // zero when it specializes a pipeline with BLOCK_WIDTH = 0.)
@@ -97,8 +106,8 @@ void main() {
         uint block = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
         uint blocks_along_i = (params.grid_nx + width - 1u) / width;
         uint local_index = gl_LocalInvocationIndex;
-        uint vi = (block % blocks_along_i) * width + local_index % width;
-        uint vj = (block / blocks_along_i) * (gl_WorkGroupSize.x / width) + local_index / width;
+        vi = (block % blocks_along_i) * width + local_index % width;
+        vj = (block / blocks_along_i) * (gl_WorkGroupSize.x / width) + local_index / width;
         if (vi >= params.grid_nx || vj >= params.grid_ny) {
             return;
         }
@@ -138,7 +147,7 @@ void main() {
             force += gravity_force(mass, params.gravity.xyz);
         }
         if (ANY_SPRINGS) {
-            add_stencil_springs(force, i, x, v);
+            add_stencil_springs(force, int(vi), int(vj), i, x, v);
         }
         if (EFFECT_AIR_DRAG) {
             force += air_drag_force(mass, params.air_drag, v);

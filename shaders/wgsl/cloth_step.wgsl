@@ -26,16 +26,22 @@ override STAGE: u32 = 0u;
 // running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
 @group(0) @binding(7) var<storage, read_write> rk4_scratch: array<vec4<f32>>;
 
-// Adds to `force` the spring from vertex (i, j) to its grid neighbour (i + di, j + dj), if that
-// neighbour exists: Hooke plus damping, with the kind's k and c_d and the given rest length.
-fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, di: i32, dj: i32, kind: u32, rest_length: f32,
-              x: vec3<f32>, v: vec3<f32>) {
-    let ni = i + di;
-    let nj = j + dj;
-    if (ni < 0 || nj < 0 || ni >= i32(params.grid_nx) || nj >= i32(params.grid_ny)) {
-        return;
+// Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
+// (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
+// the given rest length. `interior`: (i, j) is two or more vertices from every edge, so every
+// neighbour exists and its index is an offset from `index` (no edge checks: measured 5% of the
+// H100's frame).
+fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u32, interior: bool, di: i32, dj: i32,
+              kind: u32, rest_length: f32, x: vec3<f32>, v: vec3<f32>) {
+    var other = u32(i32(index) + dj * i32(params.grid_nx) + di);
+    if (!interior) {
+        let ni = i + di;
+        let nj = j + dj;
+        if (ni < 0 || nj < 0 || ni >= i32(params.grid_nx) || nj >= i32(params.grid_ny)) {
+            return;
+        }
+        other = u32(nj) * params.grid_nx + u32(ni);
     }
-    let other = u32(nj) * params.grid_nx + u32(ni);
     var damping = 0.0;
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
@@ -50,27 +56,26 @@ fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, di: i32, dj: i32,
 // round alike: kind by kind, and within a kind the springs from lower-indexed vertices first:
 // structural (0,−1) (−1,0) (+1,0) (0,+1); shear (−1,−1) (+1,−1) (+1,+1) (−1,+1); bend (0,−2)
 // (−2,0) (+2,0) (0,+2).
-fn add_stencil_springs(force: ptr<function, vec3<f32>>, index: u32, x: vec3<f32>, v: vec3<f32>) {
-    let i = i32(index % params.grid_nx);
-    let j = i32(index / params.grid_nx);
+fn add_stencil_springs(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u32, x: vec3<f32>, v: vec3<f32>) {
+    let interior = i >= 2 && j >= 2 && i + 2 < i32(params.grid_nx) && j + 2 < i32(params.grid_ny);
     let rest = params.rest_lengths;
     if (EFFECT_STRUCTURAL) {
-        add_spring(force, i, j, 0, -1, 0u, rest.y, x, v);
-        add_spring(force, i, j, -1, 0, 0u, rest.x, x, v);
-        add_spring(force, i, j, 1, 0, 0u, rest.x, x, v);
-        add_spring(force, i, j, 0, 1, 0u, rest.y, x, v);
+        add_spring(force, i, j, index, interior, 0, -1, 0u, rest.y, x, v);
+        add_spring(force, i, j, index, interior, -1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, index, interior, 1, 0, 0u, rest.x, x, v);
+        add_spring(force, i, j, index, interior, 0, 1, 0u, rest.y, x, v);
     }
     if (EFFECT_SHEAR) {
-        add_spring(force, i, j, -1, -1, 1u, rest.z, x, v);
-        add_spring(force, i, j, 1, -1, 1u, rest.z, x, v);
-        add_spring(force, i, j, 1, 1, 1u, rest.z, x, v);
-        add_spring(force, i, j, -1, 1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, -1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, 1, -1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, 1, 1, 1u, rest.z, x, v);
+        add_spring(force, i, j, index, interior, -1, 1, 1u, rest.z, x, v);
     }
     if (EFFECT_BEND) {
-        add_spring(force, i, j, 0, -2, 2u, 2.0 * rest.y, x, v);
-        add_spring(force, i, j, -2, 0, 2u, 2.0 * rest.x, x, v);
-        add_spring(force, i, j, 2, 0, 2u, 2.0 * rest.x, x, v);
-        add_spring(force, i, j, 0, 2, 2u, 2.0 * rest.y, x, v);
+        add_spring(force, i, j, index, interior, 0, -2, 2u, 2.0 * rest.y, x, v);
+        add_spring(force, i, j, index, interior, -2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, index, interior, 2, 0, 2u, 2.0 * rest.x, x, v);
+        add_spring(force, i, j, index, interior, 0, 2, 2u, 2.0 * rest.y, x, v);
     }
 }
 
@@ -84,13 +89,16 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
            @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
     // 2D dispatch: more than 65535 workgroups spill into y.
     var i = id.y * groups.x * WORKGROUP_SIZE + id.x;
+    // The vertex's grid coordinates.
+    var vi = i % params.grid_nx;
+    var vj = i / params.grid_nx;
     if (BLOCK_WIDTH != 0u) {
         // (max: no constant division by zero where the pipeline has BLOCK_WIDTH = 0.)
         let width = max(BLOCK_WIDTH, 1u);
         let block = group.y * groups.x + group.x;
         let blocks_along_i = (params.grid_nx + width - 1u) / width;
-        let vi = (block % blocks_along_i) * width + local % width;
-        let vj = (block / blocks_along_i) * (WORKGROUP_SIZE / width) + local / width;
+        vi = (block % blocks_along_i) * width + local % width;
+        vj = (block / blocks_along_i) * (WORKGROUP_SIZE / width) + local / width;
         if (vi >= params.grid_nx || vj >= params.grid_ny) {
             return;
         }
@@ -135,7 +143,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             force += gravity_force(mass, params.gravity.xyz);
         }
         if (ANY_SPRINGS) {
-            add_stencil_springs(&force, i, x, v);
+            add_stencil_springs(&force, i32(vi), i32(vj), i, x, v);
         }
         if (EFFECT_AIR_DRAG) {
             force += air_drag_force(mass, params.air_drag, v);

@@ -35,9 +35,26 @@ const F64_TOLERANCE_M: f32 = 2e-5;
 // on the hanging cloth.)
 const XPBD_ULP_PER_SUBSTEP_M: f32 = 2.4e-7;
 // Long horizon (seconds, with contact): contact switches on and off at slightly different
-// substeps, so trajectories can separate; we compare physical outcomes. 5 mm is 1% of the
-// default sphere radius.
+// substeps, so trajectories can separate; we compare physical outcomes. The resting height: 5 mm,
+// 1% of the default sphere radius.
 const CENTROID_TOLERANCE_M: f64 = 5e-3;
+// Where a symmetric drape settles sideways is decided by rounding: computing a spring's 1/L as an
+// inverse square root instead of 1/√(L²) (the same number, rounded differently) moved the f64
+// reference's resting centroid 4.0 mm sideways and the f32 reference's 5.4 mm (drape.ron), so the
+// horizontal offset is compared at 1 cm (2% of the radius), the height at CENTROID_TOLERANCE_M.
+const HORIZONTAL_DRIFT_TOLERANCE_M: f64 = 1e-2;
+
+/// The resting centroid `c` against the reference's `r`: the height within CENTROID_TOLERANCE_M,
+/// the horizontal offset within HORIZONTAL_DRIFT_TOLERANCE_M (m).
+fn assert_resting_centroid_agrees(what: &str, c: [f64; 3], r: [f64; 3]) {
+    let height = (c[1] - r[1]).abs();
+    let sideways = ((c[0] - r[0]).powi(2) + (c[2] - r[2]).powi(2)).sqrt();
+    assert!(height < CENTROID_TOLERANCE_M, "{what}: centroid {c:?} rests {height} m from the reference's height {r:?}");
+    assert!(
+        sideways < HORIZONTAL_DRIFT_TOLERANCE_M,
+        "{what}: centroid {c:?} is {sideways} m sideways from the reference's {r:?}"
+    );
+}
 
 fn run(backend: &Backend, scene: &Scene, frames: u32) -> Option<(ClothState, f64)> {
     let mut sim = create(backend, scene)?;
@@ -141,8 +158,8 @@ fn higher_order_integrators_match_the_reference_on_a_short_horizon(backend: &Bac
 /// Short horizon, with the XPBD tolerance derived above: a falling cloth, a hanging one, and a
 /// landing two frames after contact (as in `short_horizon_scenes`: later, which way the landing
 /// cloth buckles is decided by the last bits). Long horizon, by outcome: a drape comes to rest on
-/// the sphere, without NaN or deep penetration, its centroid within `CENTROID_TOLERANCE_M` of the
-/// reference's.
+/// the sphere, without NaN or deep penetration, its centroid where the reference's rests
+/// (`assert_resting_centroid_agrees`).
 fn xpbd_matches_the_reference(backend: &Backend) {
     let xpbd = |mut scene: Scene| {
         scene.integrator = cloth_core::Integrator::Xpbd;
@@ -192,7 +209,7 @@ fn xpbd_matches_the_reference(backend: &Backend) {
     let (c, r) = (state.centroid(), reference_f32(&scene, frames).centroid());
     let d = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f64>().sqrt();
     eprintln!("{}: XPBD drape 12x12, {frames} frames: centroid {d:.3e} m from the reference's", backend.name);
-    assert!(d < CENTROID_TOLERANCE_M, "XPBD drape: centroid {c:?} is {d} m from the reference {r:?}");
+    assert_resting_centroid_agrees("XPBD drape", c, r);
     assert!(c[1] > sphere.center[1], "XPBD drape rests above the sphere's centre");
 }
 
@@ -337,21 +354,23 @@ fn an_absent_effect_equals_zero_strength(backend: &Backend) {
 /// Bit for bit the f32 reference (where no multiply-adds are fused: see EXPECTED_DIFFERENCES),
 /// with semi-implicit Euler's tiled kernel off and on (`Tiling`; the GPU backends' default is off
 /// on a CPU implementation such as lavapipe, on on a GPU for small grids). The second grid spans
-/// several output blocks of the tiled kernel (`cloth_core::tiling`) each way, is no multiple of a
-/// block, and lands on the sphere (contact and friction at the seams); its 41 substeps a frame
-/// leave a remainder for the one-substep kernel.
+/// several output blocks of the tiled kernel (`cloth_core::tiling`) each way and three vertex
+/// blocks of the one-substep kernel along i (whose springs it shares within a block,
+/// `cloth_core::layout::shared_spring_cells`: the middle block's halo has columns on both sides),
+/// is no multiple of either, and lands on the sphere (contact and friction at the seams); its 41
+/// substeps a frame leave a remainder for the one-substep kernel.
 fn bit_exact_with_the_f32_reference(backend: &Backend) {
-    let mut tiles = with_grid(scene("drape.ron"), [61, 83]);
+    let mut tiles = with_grid(scene("drape.ron"), [150, 41]);
     tiles.cloth.mass = cloth_core::scene::Mass::PerVertex(0.01);
     tiles.time.substeps = Substeps::Fixed(41);
     for (name, scene, frames) in
-        [("drape 7x13", with_grid(scene("drape.ron"), [7, 13]), 12), ("drape 61x83", tiles, 18)]
+        [("drape 7x13", with_grid(scene("drape.ron"), [7, 13]), 12), ("drape 150x41", tiles, 18)]
     {
         let mut cpu = CpuSimulator::new(&scene).unwrap();
         cpu.advance(frames).unwrap();
         let reference = cpu.read_state().unwrap();
         let expected = cpu.diagnostics().unwrap().max_penetration_m;
-        if name.contains("61x83") {
+        if name.contains("150x41") {
             assert!(expected > 0.0, "{name}: the cloth should have reached the sphere");
         }
         for tiling in [Tiling::Off, Tiling::On] {
@@ -459,7 +478,7 @@ fn long_horizon_outcomes_agree(backend: &Backend) {
             let (c, r) = (state.centroid(), reference.centroid());
             let d = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f64>().sqrt();
             eprintln!("{}: {name}: centroid {c:?}, reference {r:?}, distance {d:.3e} m", backend.name);
-            assert!(d < CENTROID_TOLERANCE_M, "{name}: centroid {c:?} is {d} m from the reference {r:?}");
+            assert_resting_centroid_agrees(name, c, r);
             assert!(c[1] > scene.spheres[0].center[1], "{name}: rests above the sphere's centre");
         }
     }

@@ -21,6 +21,10 @@ pub fn gravity_force<R: Real>(mass: R, gravity: Vec3<R>) -> Vec3<R> {
 ///
 /// `k` in N/m, `c_d` in N·s/m, `L0` in m. A zero-length spring exerts no force (its direction
 /// is undefined).
+///
+/// Computed as the GPU kernels compute it: `1/L` once, as `1 / √(L²)` (the kernels' inverse
+/// square root, one instruction on a GPU, which lavapipe rounds exactly like this), then
+/// `u = (x_j − x_i) · 1/L` and `L = L² · 1/L`.
 pub fn spring_force<R: Real>(
     x_i: Vec3<R>,
     x_j: Vec3<R>,
@@ -31,11 +35,13 @@ pub fn spring_force<R: Real>(
     damping: R,
 ) -> Vec3<R> {
     let delta = x_j - x_i;
-    let length = delta.length();
-    if length <= R::zero() {
+    let length_squared = delta.dot(delta);
+    if length_squared <= R::zero() {
         return Vec3::zero();
     }
-    let u = delta * (R::one() / length);
+    let inverse_length = R::one() / length_squared.sqrt();
+    let u = delta * inverse_length;
+    let length = length_squared * inverse_length;
     let extension_rate = (v_j - v_i).dot(u);
     u * (stiffness * (length - rest_length) + damping * extension_rate)
 }

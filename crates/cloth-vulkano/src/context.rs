@@ -5,7 +5,7 @@ use std::sync::{Arc, Mutex};
 use cloth_core::SimError;
 use vulkano::VulkanLibrary;
 use vulkano::device::physical::{PhysicalDevice, PhysicalDeviceType};
-use vulkano::device::{Device, DeviceCreateInfo, Queue, QueueCreateInfo, QueueFlags};
+use vulkano::device::{Device, DeviceCreateInfo, DeviceExtensions, DeviceFeatures, Queue, QueueCreateInfo, QueueFlags};
 use vulkano::instance::debug::{
     DebugUtilsMessageSeverity, DebugUtilsMessageType, DebugUtilsMessengerCallback, DebugUtilsMessengerCreateInfo,
 };
@@ -184,10 +184,26 @@ impl VulkanContext {
             }
         };
         let description = describe(&physical);
+        // The compiler's statistics of each pipeline, where asked for and offered (statistics.rs).
+        let statistics = crate::statistics::wanted()
+            && physical.supported_extensions().khr_pipeline_executable_properties
+            && physical.supported_features().pipeline_executable_info;
+        if crate::statistics::wanted() && !statistics {
+            eprintln!(
+                "pipeline statistics: {description} does not offer VK_KHR_pipeline_executable_properties (extension {}, feature {})",
+                physical.supported_extensions().khr_pipeline_executable_properties,
+                physical.supported_features().pipeline_executable_info
+            );
+        }
         let (device, mut queues) = Device::new(
             physical,
             DeviceCreateInfo {
                 queue_create_infos: vec![QueueCreateInfo { queue_family_index: family, ..Default::default() }],
+                enabled_extensions: DeviceExtensions {
+                    khr_pipeline_executable_properties: statistics,
+                    ..DeviceExtensions::empty()
+                },
+                enabled_features: DeviceFeatures { pipeline_executable_info: statistics, ..DeviceFeatures::empty() },
                 ..Default::default()
             },
         )

@@ -15,6 +15,7 @@ mod context;
 mod passes;
 mod raw;
 mod simulator;
+mod statistics;
 mod timer;
 
 pub use context::{VulkanContext, list_devices};

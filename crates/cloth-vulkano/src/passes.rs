@@ -170,15 +170,27 @@ impl Kernel {
 
     /// The pipeline with the scene's effects, the workgroup size and the given `u32` constants.
     fn pipeline_with(&self, values: impl IntoIterator<Item = (u32, u32)>) -> Result<Arc<ComputePipeline>, SimError> {
-        let constants = self
+        let constants: Vec<(u32, SpecializationConstant)> = self
             .effects
             .iter()
             .cloned()
             .chain(values.into_iter().map(|(id, value)| (id, SpecializationConstant::U32(value))))
             .collect();
+        if crate::statistics::wanted() && crate::statistics::available(&self.device) {
+            // The constants name the kernel: 101 the stage, 102-106 a tile, 107 the block width.
+            let named: Vec<(u32, u32)> = constants
+                .iter()
+                .filter_map(|(id, c)| match c {
+                    SpecializationConstant::U32(value) if *id > WORKGROUP_SIZE_CONSTANT_ID => Some((*id, *value)),
+                    _ => None,
+                })
+                .collect();
+            let report = crate::statistics::of(&self.device, &self.module, &self.layout, &constants).join(", ");
+            eprintln!("pipeline statistics (constants {named:?}): {report}");
+        }
         let entry = self
             .module
-            .specialize(constants)
+            .specialize(constants.into_iter().collect())
             .map_err(|e| device_error(format!("specializing the shader: {e}")))?
             .entry_point("main")
             .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
