@@ -55,8 +55,8 @@ void add_spring(inout vec3 force, int i, int j, uint index, bool interior, int d
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
     }
-    force += spring_force(x, positions_in[other].xyz, v, velocities_in[other].xyz,
-                          rest_length, params.stiffness[kind], damping);
+    add_spring_force(force, x, positions_in[other].xyz, v, velocities_in[other].xyz,
+                     rest_length, params.stiffness[kind], damping);
 }
 
 // The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the

@@ -67,8 +67,8 @@ void add_tile_spring(inout vec3 force, uint c, int i, int j, int di, int dj, uin
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
     }
-    force += spring_force(x, tile_position(other), v, tile_velocity(other),
-                          rest_length, params.stiffness[kind], damping);
+    add_spring_force(force, x, tile_position(other), v, tile_velocity(other),
+                     rest_length, params.stiffness[kind], damping);
 }
 
 // cloth_step.comp's add_stencil_springs (same springs, same order), from the tile.

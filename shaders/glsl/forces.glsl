@@ -7,19 +7,21 @@ vec3 gravity_force(float mass, vec3 gravity) {
     return gravity * mass;
 }
 
-// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i.
-vec3 spring_force(vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, float rest_length, float stiffness, float damping) {
+// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i, added to `force`
+// (a zero-length spring adds nothing: branched around, measured faster on the H100 than adding 0).
+void add_spring_force(inout vec3 force, vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, float rest_length, float stiffness,
+                      float damping) {
     vec3 delta = x_j - x_i;
     float len_squared = dot(delta, delta);
     if (len_squared <= 0.0) {
-        return vec3(0.0);
+        return;
     }
     // 1/L once (one instruction on a GPU; measured 6% of the H100's frame): u and L from it.
     float inverse_len = inversesqrt(len_squared);
     vec3 u = delta * inverse_len;
     float len = len_squared * inverse_len;
     float extension_rate = dot(v_j - v_i, u);
-    return u * (stiffness * (len - rest_length) + damping * extension_rate);
+    force += u * (stiffness * (len - rest_length) + damping * extension_rate);
 }
 
 // Linear air drag F = -m γ v (not in the brief).

@@ -46,8 +46,8 @@ fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u32, inter
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
     }
-    *force += spring_force(x, positions_in[other].xyz, v, velocities_in[other].xyz,
-                           rest_length, params.stiffness[kind], damping);
+    add_spring_force(force, x, positions_in[other].xyz, v, velocities_in[other].xyz,
+                     rest_length, params.stiffness[kind], damping);
 }
 
 // The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the

@@ -60,8 +60,8 @@ fn add_tile_spring(force: ptr<function, vec3<f32>>, c: u32, i: i32, j: i32, di: 
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
     }
-    *force += spring_force(x, tile_position(other), v, tile_velocity(other),
-                           rest_length, params.stiffness[kind], damping);
+    add_spring_force(force, x, tile_position(other), v, tile_velocity(other),
+                     rest_length, params.stiffness[kind], damping);
 }
 
 // cloth_step.wgsl's add_stencil_springs (same springs, same order), from the tile.

@@ -79,20 +79,21 @@ fn gravity_force(mass: f32, gravity: vec3<f32>) -> vec3<f32> {
     return gravity * mass;
 }
 
-// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i.
-fn spring_force(x_i: vec3<f32>, x_j: vec3<f32>, v_i: vec3<f32>, v_j: vec3<f32>,
-                rest_length: f32, stiffness: f32, damping: f32) -> vec3<f32> {
+// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i, added to `force`
+// (a zero-length spring adds nothing: branched around, measured faster on the H100 than adding 0).
+fn add_spring_force(force: ptr<function, vec3<f32>>, x_i: vec3<f32>, x_j: vec3<f32>, v_i: vec3<f32>,
+                    v_j: vec3<f32>, rest_length: f32, stiffness: f32, damping: f32) {
     let delta = x_j - x_i;
     let len_squared = dot(delta, delta);
     if (len_squared <= 0.0) {
-        return vec3<f32>(0.0);
+        return;
     }
     // 1/L once (one instruction on a GPU; measured 6% of the H100's frame): u and L from it.
     let inverse_len = inverseSqrt(len_squared);
     let u = delta * inverse_len;
     let len = len_squared * inverse_len;
     let extension_rate = dot(v_j - v_i, u);
-    return u * (stiffness * (len - rest_length) + damping * extension_rate);
+    *force += u * (stiffness * (len - rest_length) + damping * extension_rate);
 }
 
 // Linear air drag F = -m γ v (not in the brief).

@@ -354,11 +354,11 @@ fn an_absent_effect_equals_zero_strength(backend: &Backend) {
 /// Bit for bit the f32 reference (where no multiply-adds are fused: see EXPECTED_DIFFERENCES),
 /// with semi-implicit Euler's tiled kernel off and on (`Tiling`; the GPU backends' default is off
 /// on a CPU implementation such as lavapipe, on on a GPU for small grids). The second grid spans
-/// several output blocks of the tiled kernel (`cloth_core::tiling`) each way and three vertex
-/// blocks of the one-substep kernel along i (whose springs it shares within a block,
-/// `cloth_core::layout::shared_spring_cells`: the middle block's halo has columns on both sides),
-/// is no multiple of either, and lands on the sphere (contact and friction at the seams); its 41
-/// substeps a frame leave a remainder for the one-substep kernel.
+/// several output blocks of the tiled kernel (`cloth_core::tiling`) each way and vertex blocks of
+/// the one-substep kernel (`cloth_core::layout::block_width`) both ways, with vertices two or more
+/// from every edge (no edge checks) and nearer, is no multiple of either block, and lands on the
+/// sphere (contact and friction at the seams); its 41 substeps a frame leave a remainder for the
+/// one-substep kernel.
 fn bit_exact_with_the_f32_reference(backend: &Backend) {
     let mut tiles = with_grid(scene("drape.ron"), [150, 41]);
     tiles.cloth.mass = cloth_core::scene::Mass::PerVertex(0.01);

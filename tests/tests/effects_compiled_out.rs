@@ -15,7 +15,9 @@ use naga::{Expression, Handle, Literal, Module, Statement};
 fn work_of(effect: Effect) -> &'static [&'static str] {
     match effect {
         Effect::Gravity => &["gravity_force"],
-        Effect::StructuralSprings | Effect::ShearSprings | Effect::BendSprings => &["spring_force", "project_spring"],
+        Effect::StructuralSprings | Effect::ShearSprings | Effect::BendSprings => {
+            &["add_spring_force", "project_spring"]
+        }
         Effect::SpringDamping => &[],
         Effect::SphereContact => {
             &["contact_force", "sphere_center", "project_sphere", "project_sphere_swept", "project_spheres"]
@@ -297,7 +299,7 @@ fn present_effects_have_reachable_work() {
         let euler: BTreeSet<String> = pipelines(language, Integrator::SemiImplicitEuler, every).remove(0).1;
         for f in [
             "gravity_force",
-            "spring_force",
+            "add_spring_force",
             "air_drag_force",
             "wind_force",
             "grid_normal",

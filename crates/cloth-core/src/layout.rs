@@ -493,8 +493,9 @@ pub fn workgroup_size() -> Result<u32, String> {
 /// rather than L2. `0`: a workgroup updates `w` consecutive vertices of a row (the layout before).
 /// Tuned on the H100 (docs/performance.md): against rows, 64 (blocks of 64 × 4 at 256
 /// invocations) cut 1024² × 64 substeps from 2.66 to 2.35 ms and 2048² × 64 from 9.57 to
-/// 8.26 ms (wgpu); 16 and 32 gained a little less.
-pub const DEFAULT_BLOCK_WIDTH: u32 = 64;
+/// 8.26 ms (wgpu); 16 and 32 gained a little less. With the leaner spring loop of stop 13, 128
+/// (128 × 2 blocks) was 2-4% faster than 64 at 2048² and the same at 1024².
+pub const DEFAULT_BLOCK_WIDTH: u32 = 128;
 
 /// [`DEFAULT_BLOCK_WIDTH`], or the value of `CLOTH_BLOCK_WIDTH` (a tuning knob for benchmarks),
 /// checked against the workgroup size `threads`.

@@ -10,8 +10,8 @@ use crate::constraints::{contact_friction, project_sphere_swept, project_spring}
 use crate::effects::Effect;
 use crate::error::SimError;
 use crate::forces::{
-    air_drag_force, contact_force, friction_force, friction_holds, gravity_force, grid_normal, integrate, spring_force,
-    stick, wind_force,
+    add_spring_force, air_drag_force, contact_force, friction_force, friction_holds, gravity_force, grid_normal,
+    integrate, stick, wind_force,
 };
 use crate::integrator::{Integrator, XPBD_ITERATIONS};
 use crate::model::ClothModel;
@@ -632,7 +632,7 @@ fn variant_force_and_stick<R: Real, const E: u16>(
     for end in &ctx.ends[ctx.first[i]..ctx.first[i + 1]] {
         let j = end.other;
         let damping = if Variant::<E>::SPRING_DAMPING { p.damping[end.kind] } else { R::zero() };
-        force += spring_force(x, ctx.x[j], v, ctx.v[j], end.rest_length, p.stiffness[end.kind], damping);
+        add_spring_force(&mut force, x, ctx.x[j], v, ctx.v[j], end.rest_length, p.stiffness[end.kind], damping);
     }
     if Variant::<E>::AIR_DRAG {
         force += air_drag_force(p.mass, p.air_drag, v);
