@@ -38,8 +38,8 @@ layout(set = 0, binding = 7, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
 // (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
 // the given rest length. `interior`: (i, j) is two or more vertices from every edge, so every
-// neighbour exists and its index is an offset from `index` (no edge checks: measured 5% of the
-// H100's frame).
+// neighbour exists and its index is an offset from `index` (no edge checks; measured on the
+// H100: docs/performance.md).
 void add_spring(inout vec3 force, int i, int j, uint index, bool interior, int di, int dj, uint kind,
                 float rest_length, vec3 x, vec3 v) {
     uint other = uint(int(index) + dj * int(params.grid_nx) + di);

@@ -1,5 +1,5 @@
 // The force model of the brief, one function per force: the GLSL twin of
-// crates/cloth-core/src/forces.rs and shaders/wgsl/cloth_step.wgsl (same names, same order of
+// crates/cloth-core/src/forces.rs and shaders/wgsl/common.wgsl (same names, same order of
 // operations). Units: m, kg, s, N/m, N·s/m.
 
 // Brief: F_g = m g.
@@ -16,7 +16,8 @@ void add_spring_force(inout vec3 force, vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, 
     if (len_squared <= 0.0) {
         return;
     }
-    // 1/L once (one instruction on a GPU; measured 6% of the H100's frame): u and L from it.
+    // 1/L once (one instruction on a GPU; measured on the H100: docs/performance.md): u and L
+    // from it.
     float inverse_len = inversesqrt(len_squared);
     vec3 u = delta * inverse_len;
     float len = len_squared * inverse_len;

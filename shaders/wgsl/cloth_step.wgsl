@@ -29,8 +29,8 @@ override STAGE: u32 = 0u;
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
 // (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
 // the given rest length. `interior`: (i, j) is two or more vertices from every edge, so every
-// neighbour exists and its index is an offset from `index` (no edge checks: measured 5% of the
-// H100's frame).
+// neighbour exists and its index is an offset from `index` (no edge checks; measured on the
+// H100: docs/performance.md).
 fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u32, interior: bool, di: i32, dj: i32,
               kind: u32, rest_length: f32, x: vec3<f32>, v: vec3<f32>) {
     var other = u32(i32(index) + dj * i32(params.grid_nx) + di);

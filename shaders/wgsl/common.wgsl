@@ -88,7 +88,8 @@ fn add_spring_force(force: ptr<function, vec3<f32>>, x_i: vec3<f32>, x_j: vec3<f
     if (len_squared <= 0.0) {
         return;
     }
-    // 1/L once (one instruction on a GPU; measured 6% of the H100's frame): u and L from it.
+    // 1/L once (one instruction on a GPU; measured on the H100: docs/performance.md): u and L
+    // from it.
     let inverse_len = inverseSqrt(len_squared);
     let u = delta * inverse_len;
     let len = len_squared * inverse_len;

@@ -77,7 +77,8 @@ pub const EXPECTED_DIFFERENCES: &[ExpectedDifference] = &[
         case: "bit_exact_with_the_f32_reference",
         symptom: "not bit-exact",
         reason: "NVIDIA's compiler contracts a*b+c into fused multiply-adds (one rounding instead of \
-                 two), which GLSL allows without `precise`; lavapipe does not",
+                 two), which GLSL allows without `precise`, and its inversesqrt is the hardware's \
+                 (Vulkan allows 2 ulp); lavapipe does neither",
     },
     ExpectedDifference {
         backend: "wgpu",
@@ -85,7 +86,8 @@ pub const EXPECTED_DIFFERENCES: &[ExpectedDifference] = &[
         case: "bit_exact_with_the_f32_reference",
         symptom: "not bit-exact",
         reason: "NVIDIA's compiler contracts a*b+c into fused multiply-adds (one rounding instead of \
-                 two), which WGSL allows; lavapipe does not, and matches the CPU bit for bit",
+                 two), which WGSL allows, and its inverseSqrt is the hardware's (2 ulp allowed); \
+                 lavapipe does neither, and matches the CPU bit for bit",
     },
 ];
 

@@ -10,7 +10,8 @@ use cloth_core::{ClothState, CpuSimulator, CpuSimulatorF64, Effect, Scene, Simul
 //
 // Short horizon, against the f32 CPU reference. Both sides evaluate the same operations in the
 // same order (shaders mirror forces.rs), so what separates them is:
-//  * fused multiply-add contraction and a different sqrt: each at most 1 ulp per operation;
+//  * fused multiply-add contraction, and the GPU's own sqrt and inverse square root (Vulkan
+//    allows 2 ulp for inversesqrt): a few ulp per operation;
 //  * the spring force amplifies a position error: k (L - L0) loses the leading digits of L,
 //    so a 1-ulp change in a coordinate (2.4e-7 m near 2 m) changes the force by k * 2.4e-7 N.
 // The springs are restoring, so such errors oscillate rather than grow: they stay a small
@@ -38,10 +39,13 @@ const XPBD_ULP_PER_SUBSTEP_M: f32 = 2.4e-7;
 // substeps, so trajectories can separate; we compare physical outcomes. The resting height: 5 mm,
 // 1% of the default sphere radius.
 const CENTROID_TOLERANCE_M: f64 = 5e-3;
-// Where a symmetric drape settles sideways is decided by rounding: computing a spring's 1/L as an
-// inverse square root instead of 1/√(L²) (the same number, rounded differently) moved the f64
-// reference's resting centroid 4.0 mm sideways and the f32 reference's 5.4 mm (drape.ron), so the
-// horizontal offset is compared at 1 cm (2% of the radius), the height at CENTROID_TOLERANCE_M.
+// Where a symmetric drape settles sideways is decided by rounding. Computing a spring's length as
+// L² · (1/L) instead of √(L²) (the same number, rounded differently; 1/L = 1/√(L²) either way,
+// 2026-11-27) moved the f64 reference's resting centroid 4.0 mm sideways and the f32 reference's
+// 5.4 mm (drape.ron, 600 frames), and took the f64 reference's from 4.0 mm of the f32's (3D) to
+// 6.1 mm sideways and 1.8 mm in height. So for the force-based drapes the sideways offset is
+// compared at 1 cm (2% of the radius), the height at CENTROID_TOLERANCE_M; the XPBD drape, whose
+// code did not change, keeps the 3D CENTROID_TOLERANCE_M.
 const HORIZONTAL_DRIFT_TOLERANCE_M: f64 = 1e-2;
 
 /// The resting centroid `c` against the reference's `r`: the height within CENTROID_TOLERANCE_M,
@@ -158,8 +162,8 @@ fn higher_order_integrators_match_the_reference_on_a_short_horizon(backend: &Bac
 /// Short horizon, with the XPBD tolerance derived above: a falling cloth, a hanging one, and a
 /// landing two frames after contact (as in `short_horizon_scenes`: later, which way the landing
 /// cloth buckles is decided by the last bits). Long horizon, by outcome: a drape comes to rest on
-/// the sphere, without NaN or deep penetration, its centroid where the reference's rests
-/// (`assert_resting_centroid_agrees`).
+/// the sphere, without NaN or deep penetration, its centroid within `CENTROID_TOLERANCE_M` of the
+/// reference's.
 fn xpbd_matches_the_reference(backend: &Backend) {
     let xpbd = |mut scene: Scene| {
         scene.integrator = cloth_core::Integrator::Xpbd;
@@ -209,7 +213,7 @@ fn xpbd_matches_the_reference(backend: &Backend) {
     let (c, r) = (state.centroid(), reference_f32(&scene, frames).centroid());
     let d = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f64>().sqrt();
     eprintln!("{}: XPBD drape 12x12, {frames} frames: centroid {d:.3e} m from the reference's", backend.name);
-    assert_resting_centroid_agrees("XPBD drape", c, r);
+    assert!(d < CENTROID_TOLERANCE_M, "XPBD drape: centroid {c:?} is {d} m from the reference {r:?}");
     assert!(c[1] > sphere.center[1], "XPBD drape rests above the sphere's centre");
 }
 

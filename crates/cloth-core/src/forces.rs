@@ -24,9 +24,12 @@ pub fn gravity_force<R: Real>(mass: R, gravity: Vec3<R>) -> Vec3<R> {
 /// undefined).
 ///
 /// Computed as the GPU kernels compute it, operation by operation: `1/L` once, as `1 / √(L²)` (the
-/// kernels' inverse square root, one instruction on a GPU, which lavapipe rounds exactly like
-/// this), then `u = (x_j − x_i) · 1/L` and `L = L² · 1/L`; and a zero-length spring is skipped
-/// rather than added as zero (the kernels branch around it: measured faster on the H100).
+/// kernels' inverse square root, one instruction on a GPU), then `u = (x_j − x_i) · 1/L` and
+/// `L = L² · 1/L`; and a zero-length spring is skipped rather than added as zero (the kernels
+/// branch around it: measured faster on the H100). lavapipe (Mesa 22.3's llvmpipe) evaluates the
+/// inverse square root as a correctly rounded square root and division, as here, which is what
+/// keeps it bit-exact with this reference; the Vulkan spec allows 2 ulp, so another Mesa (or a
+/// GPU) may differ in the last bits, which the conformance suite would report.
 #[allow(clippy::too_many_arguments)]
 pub fn add_spring_force<R: Real>(
     force: &mut Vec3<R>,

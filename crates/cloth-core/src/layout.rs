@@ -493,28 +493,42 @@ pub fn workgroup_size() -> Result<u32, String> {
 /// rather than L2. `0`: a workgroup updates `w` consecutive vertices of a row (the layout before).
 /// Tuned on the H100 (docs/performance.md): against rows, 64 (blocks of 64 × 4 at 256
 /// invocations) cut 1024² × 64 substeps from 2.66 to 2.35 ms and 2048² × 64 from 9.57 to
-/// 8.26 ms (wgpu); 16 and 32 gained a little less. With the leaner spring loop of stop 13, 128
-/// (128 × 2 blocks) was 2-4% faster than 64 at 2048² and the same at 1024².
+/// 8.26 ms (wgpu); 16 and 32 gained a little less. Once the spring loop was leaner (one inverse
+/// square root, no edge checks inside the grid, 2026-11-27), 128 (128 × 2 blocks) was 2-4% faster
+/// than 64 at 2048² and the same at 1024². Workgroups of fewer invocations get rows of theirs.
 pub const DEFAULT_BLOCK_WIDTH: u32 = 128;
 
-/// [`DEFAULT_BLOCK_WIDTH`], or the value of `CLOTH_BLOCK_WIDTH` (a tuning knob for benchmarks),
-/// checked against the workgroup size `threads`.
+/// [`DEFAULT_BLOCK_WIDTH`] (at most the workgroup size `threads`), or the value of
+/// `CLOTH_BLOCK_WIDTH` (a tuning knob for benchmarks), checked against `threads`.
 ///
 /// # Errors
 /// The variable and its value when it is not 0 or a power of two that divides `threads`.
 pub fn block_width(threads: u32) -> Result<u32, String> {
-    let width = match std::env::var("CLOTH_BLOCK_WIDTH") {
-        Ok(text) if !text.trim().is_empty() => {
-            text.trim().parse::<u32>().map_err(|_| format!("the block width CLOTH_BLOCK_WIDTH={text} (a number)"))?
-        }
-        _ => DEFAULT_BLOCK_WIDTH,
+    block_width_from(std::env::var("CLOTH_BLOCK_WIDTH").ok().as_deref(), threads)
+}
+
+/// The block width the per-substep kernels use on a grid `nx` vertices wide: [`block_width`]
+/// (0 if the knob is wrong, which `checked_workgroup_size` reports first), but no wider than the
+/// grid's next power of two, so a narrow grid does not leave most of each workgroup idle (at
+/// 128 × 2 a 12-wide grid would use 24 of 256 invocations; at 16 × 16 it uses 192).
+pub fn grid_block_width(threads: u32, nx: u32) -> u32 {
+    let width = block_width(threads).unwrap_or(0);
+    if width == 0 { 0 } else { width.min(nx.max(1).next_power_of_two()) }
+}
+
+/// [`block_width`] with the variable's value given (`None`: unset).
+fn block_width_from(explicit: Option<&str>, threads: u32) -> Result<u32, String> {
+    let Some(text) = explicit.filter(|t| !t.trim().is_empty()) else {
+        return Ok(DEFAULT_BLOCK_WIDTH.min(threads));
     };
+    let width =
+        text.trim().parse::<u32>().map_err(|_| format!("the block width CLOTH_BLOCK_WIDTH={text} (a number)"))?;
     if width != 0 && (!width.is_power_of_two() || !threads.is_multiple_of(width)) {
         return Err(format!(
             "the block width CLOTH_BLOCK_WIDTH={width} (0, or a power of two that divides the workgroup size {threads})"
         ));
     }
-    Ok(width.min(threads))
+    Ok(width)
 }
 
 /// Invocations the per-substep kernels dispatch for an `nx × ny` grid at `threads` a workgroup:
@@ -550,6 +564,38 @@ pub fn checked_workgroup_size(backend: &'static str) -> Result<u32, crate::error
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_block_width_defaults_within_the_workgroup_and_checks_what_is_asked() {
+        assert_eq!(block_width_from(None, 256), Ok(DEFAULT_BLOCK_WIDTH));
+        // Every workgroup size the knob allows has a default block (rows below 128 invocations).
+        for threads in [32, 64, 128, 1024] {
+            assert_eq!(block_width_from(None, threads), Ok(DEFAULT_BLOCK_WIDTH.min(threads)), "{threads}");
+        }
+        assert_eq!(block_width_from(Some(" "), 64), Ok(64));
+        assert_eq!(block_width_from(Some("0"), 256), Ok(0));
+        assert_eq!(block_width_from(Some("32"), 256), Ok(32));
+        assert!(block_width_from(Some("128"), 64).unwrap_err().contains("divides the workgroup size 64"));
+        assert!(block_width_from(Some("48"), 256).unwrap_err().contains("CLOTH_BLOCK_WIDTH=48"));
+        assert!(block_width_from(Some("wide"), 256).unwrap_err().contains("a number"));
+    }
+
+    #[test]
+    fn a_narrow_grid_gets_a_narrower_block() {
+        if std::env::var_os("CLOTH_BLOCK_WIDTH").is_some() {
+            return; // (the knob is not set in the tests)
+        }
+        assert_eq!(grid_block_width(256, 2048), DEFAULT_BLOCK_WIDTH);
+        assert_eq!(grid_block_width(256, 150), DEFAULT_BLOCK_WIDTH);
+        assert_eq!(grid_block_width(256, 32), 32);
+        assert_eq!(grid_block_width(256, 12), 16);
+        assert_eq!(grid_block_width(256, 1), 1);
+        assert_eq!(grid_block_width(64, 2048), 64);
+        for nx in 1..300 {
+            let w = grid_block_width(256, nx);
+            assert!(w.is_power_of_two() && 256u32.is_multiple_of(w), "{nx}: {w}");
+        }
+    }
 
     #[test]
     fn layouts_have_the_sizes_the_shaders_expect() {

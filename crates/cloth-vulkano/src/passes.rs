@@ -176,7 +176,19 @@ impl Kernel {
             .cloned()
             .chain(values.into_iter().map(|(id, value)| (id, SpecializationConstant::U32(value))))
             .collect();
-        if crate::statistics::wanted() && crate::statistics::available(&self.device) {
+        let entry = self
+            .module
+            .specialize(constants.iter().cloned().collect())
+            .map_err(|e| device_error(format!("specializing the shader: {e}")))?
+            .entry_point("main")
+            .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
+        let pipeline = ComputePipeline::new(
+            self.device.clone(),
+            None,
+            ComputePipelineCreateInfo::stage_layout(PipelineShaderStageCreateInfo::new(entry), self.layout.clone()),
+        )
+        .map_err(|e| device_error(format!("compute pipeline: {e}")))?;
+        if crate::statistics::wanted() {
             // The constants name the kernel: 101 the stage, 102-106 a tile, 107 the block width.
             let named: Vec<(u32, u32)> = constants
                 .iter()
@@ -185,21 +197,12 @@ impl Kernel {
                     _ => None,
                 })
                 .collect();
-            let report = crate::statistics::of(&self.device, &self.module, &self.layout, &constants).join(", ");
-            eprintln!("pipeline statistics (constants {named:?}): {report}");
+            match crate::statistics::of(&self.device, &self.module, &self.layout, &constants) {
+                Ok(lines) => eprintln!("pipeline statistics (constants {named:?}): {}", lines.join(", ")),
+                Err(e) => eprintln!("pipeline statistics (constants {named:?}): none: {e}"),
+            }
         }
-        let entry = self
-            .module
-            .specialize(constants.into_iter().collect())
-            .map_err(|e| device_error(format!("specializing the shader: {e}")))?
-            .entry_point("main")
-            .ok_or_else(|| device_error("the SPIR-V has no `main` entry point"))?;
-        ComputePipeline::new(
-            self.device.clone(),
-            None,
-            ComputePipelineCreateInfo::stage_layout(PipelineShaderStageCreateInfo::new(entry), self.layout.clone()),
-        )
-        .map_err(|e| device_error(format!("compute pipeline: {e}")))
+        Ok(pipeline)
     }
 
     fn set(
@@ -227,7 +230,7 @@ pub(crate) fn plan(
     let max_x = device.physical_device().properties().max_compute_work_group_count[0];
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
-    let block_width = cloth_core::layout::block_width(workgroup_size()).unwrap_or(0);
+    let block_width = cloth_core::layout::grid_block_width(workgroup_size(), scene.cloth.resolution[0]);
     let blocks = block_workgroups(scene, block_width, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let mut uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)> = Vec::new();

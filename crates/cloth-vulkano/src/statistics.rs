@@ -3,13 +3,24 @@
 //! tuning (occupancy is registers and shared memory), asked for with `CLOTH_PIPELINE_STATS=1` and
 //! printed to stderr as each pipeline is built.
 
-use std::ffi::CStr;
 use std::sync::Arc;
 
+use ash::vk;
 use vulkano::VulkanObject;
 use vulkano::device::Device;
 use vulkano::pipeline::PipelineLayout;
 use vulkano::shader::{ShaderModule, SpecializationConstant};
+
+/// Why no statistics came back.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum StatisticsError {
+    #[error("the device was opened without VK_KHR_pipeline_executable_properties")]
+    Unavailable,
+    #[error("specialization constant {0} is neither a bool nor a u32, which this diagnostic does not pass")]
+    Constant(u32),
+    #[error("the driver answered {0:?}")]
+    Vulkan(vk::Result),
+}
 
 /// Whether `CLOTH_PIPELINE_STATS=1` asks for the statistics.
 pub(crate) fn wanted() -> bool {
@@ -22,23 +33,29 @@ pub(crate) fn available(device: &Device) -> bool {
 }
 
 /// The driver's statistics of the compute pipeline of `module`'s `main` under `layout` and the
-/// specialization `constants`, one line each, `name = value`; empty when the driver reports
-/// none. vulkano has no flag to capture them (`CAPTURE_STATISTICS` is not exposed), so this builds
-/// a twin of the pipeline through the raw Vulkan calls, with the flag, and drops it after.
+/// specialization `constants`, one `name = value` line each. vulkano has no flag to capture them
+/// (`CAPTURE_STATISTICS` is not exposed), so this builds a twin of the pipeline through the raw
+/// Vulkan calls, with the flag, and destroys it after.
+///
+/// # Errors
+/// [`StatisticsError`]: the device lacks the extension, a constant is of a type this does not
+/// pass, or the driver failed a call.
 pub(crate) fn of(
     device: &Arc<Device>,
     module: &ShaderModule,
     layout: &PipelineLayout,
     constants: &[(u32, SpecializationConstant)],
-) -> Vec<String> {
-    use ash::vk;
+) -> Result<Vec<String>, StatisticsError> {
+    if !available(device) {
+        return Err(StatisticsError::Unavailable);
+    }
     let mut data: Vec<u8> = Vec::new();
     let mut entries: Vec<vk::SpecializationMapEntry> = Vec::new();
     for (id, constant) in constants {
         let value = match *constant {
             SpecializationConstant::Bool(on) => u32::from(on),
             SpecializationConstant::U32(value) => value,
-            _ => continue,
+            _ => return Err(StatisticsError::Constant(*id)),
         };
         entries.push(vk::SpecializationMapEntry { constant_id: *id, offset: data.len() as u32, size: 4 });
         data.extend_from_slice(&value.to_ne_bytes());
@@ -55,8 +72,9 @@ pub(crate) fn of(
         .layout(layout.handle());
     let mut pipeline = vk::Pipeline::null();
     let v1_0 = &device.fns().v1_0;
-    // SAFETY: valid device, module and layout handles; the create info and what it points to
-    // outlive the call; the pipeline is destroyed below and never used otherwise.
+    // SAFETY: valid device, module and layout handles (the module's `main` and these constants
+    // were validated by vulkano building the same pipeline first); the create info and what it
+    // points to outlive the call; the pipeline is destroyed below and never used otherwise.
     let result = unsafe {
         (v1_0.create_compute_pipelines)(
             device.handle(),
@@ -68,7 +86,7 @@ pub(crate) fn of(
         )
     };
     if result != vk::Result::SUCCESS {
-        return vec![format!("(the driver did not build the pipeline: {result:?})")];
+        return Err(StatisticsError::Vulkan(result));
     }
     let lines = statistics(device, pipeline);
     // SAFETY: the pipeline was created above on this device and is not in use.
@@ -76,8 +94,9 @@ pub(crate) fn of(
     lines
 }
 
-fn statistics(device: &Device, pipeline: ash::vk::Pipeline) -> Vec<String> {
-    use ash::vk;
+/// The statistics of executable 0 (a compute pipeline's only one) of `pipeline`, built with
+/// `CAPTURE_STATISTICS` on `device`, which has the extension and its feature.
+fn statistics(device: &Device, pipeline: vk::Pipeline) -> Result<Vec<String>, StatisticsError> {
     let fns = &device.fns().khr_pipeline_executable_properties;
     let info = vk::PipelineExecutableInfoKHR::default().pipeline(pipeline).executable_index(0);
     let mut count = 0u32;
@@ -85,8 +104,8 @@ fn statistics(device: &Device, pipeline: ash::vk::Pipeline) -> Vec<String> {
     let result = unsafe {
         (fns.get_pipeline_executable_statistics_khr)(device.handle(), &info, &mut count, std::ptr::null_mut())
     };
-    if result != vk::Result::SUCCESS || count == 0 {
-        return Vec::new();
+    if result != vk::Result::SUCCESS {
+        return Err(StatisticsError::Vulkan(result));
     }
     let mut statistics = vec![vk::PipelineExecutableStatisticKHR::default(); count as usize];
     // SAFETY: `statistics` holds `count` initialised structures of the right type.
@@ -94,15 +113,14 @@ fn statistics(device: &Device, pipeline: ash::vk::Pipeline) -> Vec<String> {
         (fns.get_pipeline_executable_statistics_khr)(device.handle(), &info, &mut count, statistics.as_mut_ptr())
     };
     if result != vk::Result::SUCCESS && result != vk::Result::INCOMPLETE {
-        return Vec::new();
+        return Err(StatisticsError::Vulkan(result));
     }
-    statistics
+    Ok(statistics
         .iter()
         .take(count as usize)
         .map(|s| {
-            // SAFETY: the driver writes NUL-terminated names; the union member read is the one
-            // `format` names.
-            let name = unsafe { CStr::from_ptr(s.name.as_ptr()) }.to_string_lossy();
+            let name = s.name_as_c_str().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|_| "?".into());
+            // SAFETY: the union member read is the one `format` names.
             let value = unsafe {
                 match s.format {
                     vk::PipelineExecutableStatisticFormatKHR::BOOL32 => (s.value.b32 != 0).to_string(),
@@ -113,5 +131,5 @@ fn statistics(device: &Device, pipeline: ash::vk::Pipeline) -> Vec<String> {
             };
             format!("{name} = {value}")
         })
-        .collect()
+        .collect())
 }

@@ -154,12 +154,18 @@ impl<'a> Kernel<'a> {
             label: Some(name),
             source: wgpu::ShaderSource::Wgsl(source.to_owned().into()),
         };
-        // SAFETY: without wgpu's runtime checks (bounds clamping and loop bounding: 2-3% of the
-        // H100's frame at 1024² and 2048², measured), as the vulkano backend runs its kernels. Every index the cloth
-        // kernels form is in bounds by construction: state buffers are indexed by grid vertices
-        // checked against the grid (or offsets from a vertex two or more from every edge),
-        // workgroup arrays by cells of their tile; every loop is bounded (spheres, tile cells,
-        // XPBD colours). The conformance suite runs every kernel on lavapipe and on the H100.
+        // SAFETY: the kernels run without wgpu's runtime checks (index clamping and loop
+        // bounding; 1.6-2.7% of the H100's frame at 1024² and 2048², docs/performance.md), as the
+        // vulkano backend runs its SPIR-V. Every index they form is in bounds given what the host
+        // guarantees: `vertex_count = nx · ny` is the length of every state buffer, and a vertex
+        // index comes from grid coordinates checked against `nx`, `ny` (or is an offset of at
+        // most two rows and columns from a vertex two or more from every edge); `sphere_count`
+        // is at most the sphere buffer's length (a change of sphere count rebuilds the simulator,
+        // `Scene::rebuild_reason`); XPBD's constraints have `a`, `b` below the vertex count and
+        // `kind` at most 2, and its colour ranges lie inside the constraint buffer (both built by
+        // cloth-core); RK4's stages run only with the full per-vertex scratch bound; the tiled
+        // kernel reads only tile cells it wrote, at most two cells a substep from its own.
+        // Every loop is bounded: over the spheres and over the fused substeps (a constant).
         let module = unsafe { device.create_shader_module_trusted(descriptor, wgpu::ShaderRuntimeChecks::unchecked()) };
         let layout = bind_group_layout(device, &format!("{name} bind group layout"), bindings);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -251,7 +257,7 @@ pub(crate) fn plan(
     let max_x = device.limits().max_compute_workgroups_per_dimension;
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
-    let block_width = cloth_core::layout::block_width(workgroup_size()).unwrap_or(0);
+    let block_width = cloth_core::layout::grid_block_width(workgroup_size(), scene.cloth.resolution[0]);
     let blocks = block_workgroups(scene, block_width, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let name = ["A", "B"];
