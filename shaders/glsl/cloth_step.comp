@@ -317,49 +317,59 @@ void walk_main() {
     vec4 from_below_left = vec4(0.0);   // (−1,−1)
     vec4 from_below_right = vec4(0.0);  // (+1,−1)
     for (; r < j_end; r++) {
+        vec4 x3 = walk_position(col, r + 3);
+        vec4 v3 = walk_velocity(col, r + 3);
         bool here = column_here && r >= 0;
         bool up1 = r + 1 < ny;
+        bool up2 = r + 2 < ny;
         bool right_here = col + 1 < nx;
-        // The force on row r's vertex, summed in the CPU reference's order (add_stencil_springs
-        // above) as each term becomes known; every lane sums, the owned ones use it.
-        vec3 force = vec3(0.0);
-        if (EFFECT_GRAVITY) {
-            force += gravity_force(params.vertex_mass, params.gravity.xyz);
-        }
-        walk_add(force, from_below);
-        vec4 right = walk_spring(EFFECT_STRUCTURAL && here && right_here, x0.xyz, v0.xyz,
-                                 subgroupShuffle(x0.xyz, right1), subgroupShuffle(v0.xyz, right1), rest.x, 0u);
-        walk_add(force, walk_negated(subgroupShuffle(right, left1)));
-        walk_add(force, right);
+        vec3 x_r1 = subgroupShuffle(x0.xyz, right1);
+        vec3 v_r1 = subgroupShuffle(v0.xyz, right1);
+        vec3 x_r2 = subgroupShuffle(x0.xyz, right2);
+        vec3 v_r2 = subgroupShuffle(v0.xyz, right2);
+        vec3 x_ur = subgroupShuffle(x1.xyz, right1);
+        vec3 v_ur = subgroupShuffle(v1.xyz, right1);
+        vec3 x_ul = subgroupShuffle(x1.xyz, left1);
+        vec3 v_ul = subgroupShuffle(v1.xyz, left1);
+        vec4 right = walk_spring(EFFECT_STRUCTURAL && here && right_here, x0.xyz, v0.xyz, x_r1, v_r1, rest.x, 0u);
+        vec4 right_two = walk_spring(EFFECT_BEND && here && col + 2 < nx, x0.xyz, v0.xyz, x_r2, v_r2, 2.0 * rest.x, 2u);
         vec4 up = walk_spring(EFFECT_STRUCTURAL && here && up1, x0.xyz, v0.xyz, x1.xyz, v1.xyz, rest.y, 0u);
-        walk_add(force, up);
-        from_below = walk_negated(up);
-        walk_add(force, from_below_left);
-        walk_add(force, from_below_right);
-        vec4 up_right = walk_spring(EFFECT_SHEAR && here && up1 && right_here, x0.xyz, v0.xyz,
-                                    subgroupShuffle(x1.xyz, right1), subgroupShuffle(v1.xyz, right1), rest.z, 1u);
-        walk_add(force, up_right);
-        from_below_left = walk_negated(subgroupShuffle(up_right, left1));
-        vec4 up_left = walk_spring(EFFECT_SHEAR && here && up1 && col >= 1, x0.xyz, v0.xyz,
-                                   subgroupShuffle(x1.xyz, left1), subgroupShuffle(v1.xyz, left1), rest.z, 1u);
-        walk_add(force, up_left);
-        from_below_right = walk_negated(subgroupShuffle(up_left, right1));
-        walk_add(force, from_two_below);
-        from_two_below = from_two_below_next;
-        vec4 right_two = walk_spring(EFFECT_BEND && here && col + 2 < nx, x0.xyz, v0.xyz,
-                                     subgroupShuffle(x0.xyz, right2), subgroupShuffle(v0.xyz, right2), 2.0 * rest.x, 2u);
-        walk_add(force, walk_negated(subgroupShuffle(right_two, left2)));
-        walk_add(force, right_two);
-        vec4 up_two = walk_spring(EFFECT_BEND && here && r + 2 < ny, x0.xyz, v0.xyz, x2.xyz, v2.xyz, 2.0 * rest.y, 2u);
-        walk_add(force, up_two);
-        from_two_below_next = walk_negated(up_two);
+        vec4 up_two = walk_spring(EFFECT_BEND && here && up2, x0.xyz, v0.xyz, x2.xyz, v2.xyz, 2.0 * rest.y, 2u);
+        vec4 up_right = walk_spring(EFFECT_SHEAR && here && up1 && right_here, x0.xyz, v0.xyz, x_ur, v_ur, rest.z, 1u);
+        vec4 up_left = walk_spring(EFFECT_SHEAR && here && up1 && col >= 1, x0.xyz, v0.xyz, x_ul, v_ul, rest.z, 1u);
+        vec4 from_left = walk_negated(subgroupShuffle(right, left1));
+        vec4 from_two_left = walk_negated(subgroupShuffle(right_two, left2));
         if (owned && r >= j0) {
+            vec3 force = vec3(0.0);
+            if (x0.w != 0.0) {
+                if (EFFECT_GRAVITY) {
+                    force += gravity_force(params.vertex_mass, params.gravity.xyz);
+                }
+                // The CPU reference's order (add_stencil_springs above).
+                walk_add(force, from_below);
+                walk_add(force, from_left);
+                walk_add(force, right);
+                walk_add(force, up);
+                walk_add(force, from_below_left);
+                walk_add(force, from_below_right);
+                walk_add(force, up_right);
+                walk_add(force, up_left);
+                walk_add(force, from_two_below);
+                walk_add(force, from_two_left);
+                walk_add(force, right_two);
+                walk_add(force, up_two);
+            }
             update_vertex(uint(r) * params.grid_nx + uint(col), x0, v0, force);
         }
+        // What the rows above take from this one.
+        from_below = walk_negated(up);
+        from_two_below = from_two_below_next;
+        from_two_below_next = walk_negated(up_two);
+        from_below_left = walk_negated(subgroupShuffle(up_right, left1));
+        from_below_right = walk_negated(subgroupShuffle(up_left, right1));
         x0 = x1; v0 = v1;
         x1 = x2; v1 = v2;
-        x2 = walk_position(col, r + 3);
-        v2 = walk_velocity(col, r + 3);
+        x2 = x3; v2 = v3;
     }
 }
 
