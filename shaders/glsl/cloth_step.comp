@@ -1,7 +1,5 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-#extension GL_KHR_shader_subgroup_basic : require
-#extension GL_KHR_shader_subgroup_shuffle : require
 
 // One substep of the mass-spring cloth under a force-based integrator (semi-implicit Euler,
 // velocity Verlet): one invocation per vertex. Effects the scene leaves out are compiled out
@@ -90,12 +88,37 @@ void add_stencil_springs(inout vec3 force, int i, int j, uint index, vec3 x, vec
     }
 }
 
-// Everything of a substep at vertex i after its spring forces: `force` is its weight plus its
-// springs (in the CPU reference's order); this adds air drag, wind, contact and friction,
-// integrates with the stage's scheme, writes the vertex's new state and the deepest penetration.
-// p and state: the vertex's position (w: 1 free, 0 pinned) and velocity (w: time) as read.
-void update_vertex(uint i, vec4 p, vec4 state, vec3 force) {
+// Vertices along i of the block of the grid one workgroup updates (cloth_core::layout::
+// block_width): a workgroup updates BLOCK_WIDTH × (workgroup size / BLOCK_WIDTH) vertices, so
+// the rows its springs reach are mostly its own (L1 hits). 0: a workgroup's worth of a row.
+layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
+
+void main() {
+    // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
+    uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    // The vertex's grid coordinates.
+    uint vi = i % params.grid_nx;
+    uint vj = i / params.grid_nx;
+    if (BLOCK_WIDTH != 0u) {
+        // (max: not a specialization-constant operation, so vulkano does not fold a quotient by
+        // zero when it specializes a pipeline with BLOCK_WIDTH = 0.)
+        uint width = max(BLOCK_WIDTH, 1u);
+        uint block = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        uint blocks_along_i = (params.grid_nx + width - 1u) / width;
+        uint local_index = gl_LocalInvocationIndex;
+        vi = (block % blocks_along_i) * width + local_index % width;
+        vj = (block / blocks_along_i) * (gl_WorkGroupSize.x / width) + local_index / width;
+        if (vi >= params.grid_nx || vj >= params.grid_ny) {
+            return;
+        }
+        i = vj * params.grid_nx + vi;
+    }
+    if (i >= params.vertex_count) {
+        return;
+    }
+    vec4 p = positions_in[i];
     vec3 x = p.xyz;
+    vec4 state = velocities_in[i];
     vec3 v = state.xyz;
     // The time of the state read (velocity.w), and of the state written.
     float t = state.w;
@@ -119,6 +142,13 @@ void update_vertex(uint i, vec4 p, vec4 state, vec3 force) {
         float mass = params.vertex_mass;
         // The step the friction's stopping term refers to: what this stage's velocity update spans.
         float friction_dt = (STAGE == 1u || STAGE == 2u) ? half_dt : dt;
+        vec3 force = vec3(0.0);
+        if (EFFECT_GRAVITY) {
+            force += gravity_force(mass, params.gravity.xyz);
+        }
+        if (ANY_SPRINGS) {
+            add_stencil_springs(force, int(vi), int(vj), i, x, v);
+        }
         if (EFFECT_AIR_DRAG) {
             force += air_drag_force(mass, params.air_drag, v);
         }
@@ -217,205 +247,4 @@ void update_vertex(uint i, vec4 p, vec4 state, vec3 force) {
             }
         }
     }
-}
-
-
-// ---- The walking kernel (WALK_ROWS > 0) -------------------------------------------------------
-// Each subgroup owns (subgroup size − 4) adjacent columns of the grid (its lanes 2 .. size − 3;
-// the two lanes at each side are a halo that computes but writes nothing) and walks down
-// WALK_ROWS rows of them. Each lane keeps its own column's rows r, r + 1, r + 2 in registers and
-// gets its row neighbours' state from the lanes beside it (subgroup shuffles), so it reads only
-// one new vertex from memory a row. Each spring is computed once, by its lower-left end
-// ("forward": (+1,0) (+2,0) (0,+1) (0,+2) (+1,+1) (−1,+1)); the other end adds its exact
-// negation (Δx, u and the extension rate change sign exactly), from a register (vertical
-// springs, kept from earlier rows) or a shuffle. The sums are added in the CPU reference's order,
-// so results match the block kernel bit for bit where the arithmetic is not fused.
-layout(constant_id = 108) const uint WALK_ROWS = 0u;
-
-// The force of the spring from vertex a to vertex b on a (xyz; on b it is the exact negation),
-// w = 1; vec4(0) where the spring is absent or has zero length (nothing is added for it).
-vec4 walk_spring(bool present, vec3 x_a, vec3 v_a, vec3 x_b, vec3 v_b, float rest_length, uint kind) {
-    if (!present) {
-        return vec4(0.0);
-    }
-    vec3 delta = x_b - x_a;
-    float len_squared = dot(delta, delta);
-    if (len_squared <= 0.0) {
-        return vec4(0.0);
-    }
-    float inverse_len = inversesqrt(len_squared);
-    vec3 u = delta * inverse_len;
-    float len = len_squared * inverse_len;
-    float damping = 0.0;
-    if (EFFECT_SPRING_DAMPING) {
-        damping = params.damping[kind];
-    }
-    float extension_rate = dot(v_b - v_a, u);
-    return vec4(u * (params.stiffness[kind] * (len - rest_length) + damping * extension_rate), 1.0);
-}
-
-void walk_add(inout vec3 force, vec4 spring) {
-    if (spring.w != 0.0) {
-        force += spring.xyz;
-    }
-}
-
-vec4 walk_negated(vec4 spring) {
-    return vec4(-spring.xyz, spring.w);
-}
-
-vec4 walk_position(int col, int row) {
-    if (col < 0 || row < 0 || col >= int(params.grid_nx) || row >= int(params.grid_ny)) {
-        return vec4(0.0);
-    }
-    return positions_in[uint(row) * params.grid_nx + uint(col)];
-}
-
-vec4 walk_velocity(int col, int row) {
-    if (col < 0 || row < 0 || col >= int(params.grid_nx) || row >= int(params.grid_ny)) {
-        return vec4(0.0);
-    }
-    return velocities_in[uint(row) * params.grid_nx + uint(col)];
-}
-
-void walk_main() {
-    int nx = int(params.grid_nx);
-    int ny = int(params.grid_ny);
-    int size = int(gl_SubgroupSize);
-    int lane = int(gl_SubgroupInvocationID);
-    int owned_columns = size - 4;
-    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint subgroup = group * gl_NumSubgroups + gl_SubgroupID;
-    uint subgroups_along_i = (params.grid_nx + uint(owned_columns) - 1u) / uint(owned_columns);
-    uint rows = max(WALK_ROWS, 1u);
-    uint strip = subgroup / subgroups_along_i;
-    if (strip * rows >= params.grid_ny) {
-        return; // the whole subgroup
-    }
-    int col = int(subgroup % subgroups_along_i) * owned_columns + lane - 2;
-    bool owned = lane >= 2 && lane < size - 2 && col < nx;
-    bool column_here = col >= 0 && col < nx;
-    int j0 = int(strip * rows);
-    int j_end = min(j0 + int(rows), ny);
-    // Shuffle sources, clamped to the subgroup (only halo lanes see the clamped values).
-    uint right1 = uint(min(lane + 1, size - 1));
-    uint right2 = uint(min(lane + 2, size - 1));
-    uint left1 = uint(max(lane - 1, 0));
-    uint left2 = uint(max(lane - 2, 0));
-    vec4 rest = params.rest_lengths;
-    int r = j0 - 2;
-    vec4 x0 = walk_position(col, r);
-    vec4 v0 = walk_velocity(col, r);
-    vec4 x1 = walk_position(col, r + 1);
-    vec4 v1 = walk_velocity(col, r + 1);
-    vec4 x2 = walk_position(col, r + 2);
-    vec4 v2 = walk_velocity(col, r + 2);
-    // Forces on row r's vertex from springs computed at earlier rows (already negated).
-    vec4 from_below = vec4(0.0);        // (0,−1)
-    vec4 from_two_below = vec4(0.0);    // (0,−2)
-    vec4 from_two_below_next = vec4(0.0);
-    vec4 from_below_left = vec4(0.0);   // (−1,−1)
-    vec4 from_below_right = vec4(0.0);  // (+1,−1)
-    for (; r < j_end; r++) {
-        vec4 x3 = walk_position(col, r + 3);
-        vec4 v3 = walk_velocity(col, r + 3);
-        bool here = column_here && r >= 0;
-        bool up1 = r + 1 < ny;
-        bool up2 = r + 2 < ny;
-        bool right_here = col + 1 < nx;
-        vec3 x_r1 = subgroupShuffle(x0.xyz, right1);
-        vec3 v_r1 = subgroupShuffle(v0.xyz, right1);
-        vec3 x_r2 = subgroupShuffle(x0.xyz, right2);
-        vec3 v_r2 = subgroupShuffle(v0.xyz, right2);
-        vec3 x_ur = subgroupShuffle(x1.xyz, right1);
-        vec3 v_ur = subgroupShuffle(v1.xyz, right1);
-        vec3 x_ul = subgroupShuffle(x1.xyz, left1);
-        vec3 v_ul = subgroupShuffle(v1.xyz, left1);
-        vec4 right = walk_spring(EFFECT_STRUCTURAL && here && right_here, x0.xyz, v0.xyz, x_r1, v_r1, rest.x, 0u);
-        vec4 right_two = walk_spring(EFFECT_BEND && here && col + 2 < nx, x0.xyz, v0.xyz, x_r2, v_r2, 2.0 * rest.x, 2u);
-        vec4 up = walk_spring(EFFECT_STRUCTURAL && here && up1, x0.xyz, v0.xyz, x1.xyz, v1.xyz, rest.y, 0u);
-        vec4 up_two = walk_spring(EFFECT_BEND && here && up2, x0.xyz, v0.xyz, x2.xyz, v2.xyz, 2.0 * rest.y, 2u);
-        vec4 up_right = walk_spring(EFFECT_SHEAR && here && up1 && right_here, x0.xyz, v0.xyz, x_ur, v_ur, rest.z, 1u);
-        vec4 up_left = walk_spring(EFFECT_SHEAR && here && up1 && col >= 1, x0.xyz, v0.xyz, x_ul, v_ul, rest.z, 1u);
-        vec4 from_left = walk_negated(subgroupShuffle(right, left1));
-        vec4 from_two_left = walk_negated(subgroupShuffle(right_two, left2));
-        if (owned && r >= j0) {
-            vec3 force = vec3(0.0);
-            if (x0.w != 0.0) {
-                if (EFFECT_GRAVITY) {
-                    force += gravity_force(params.vertex_mass, params.gravity.xyz);
-                }
-                // The CPU reference's order (add_stencil_springs above).
-                walk_add(force, from_below);
-                walk_add(force, from_left);
-                walk_add(force, right);
-                walk_add(force, up);
-                walk_add(force, from_below_left);
-                walk_add(force, from_below_right);
-                walk_add(force, up_right);
-                walk_add(force, up_left);
-                walk_add(force, from_two_below);
-                walk_add(force, from_two_left);
-                walk_add(force, right_two);
-                walk_add(force, up_two);
-            }
-            update_vertex(uint(r) * params.grid_nx + uint(col), x0, v0, force);
-        }
-        // What the rows above take from this one.
-        from_below = walk_negated(up);
-        from_two_below = from_two_below_next;
-        from_two_below_next = walk_negated(up_two);
-        from_below_left = walk_negated(subgroupShuffle(up_right, left1));
-        from_below_right = walk_negated(subgroupShuffle(up_left, right1));
-        x0 = x1; v0 = v1;
-        x1 = x2; v1 = v2;
-        x2 = x3; v2 = v3;
-    }
-}
-
-// Vertices along i of the block of the grid one workgroup updates (cloth_core::layout::
-// block_width): a workgroup updates BLOCK_WIDTH × (workgroup size / BLOCK_WIDTH) vertices, so
-// the rows its springs reach are mostly its own (L1 hits). 0: a workgroup's worth of a row.
-layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
-
-void main() {
-    if (WALK_ROWS != 0u) {
-        walk_main();
-        return;
-    }
-    // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
-    uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
-    // The vertex's grid coordinates.
-    uint vi = i % params.grid_nx;
-    uint vj = i / params.grid_nx;
-    if (BLOCK_WIDTH != 0u) {
-        // (max: not a specialization-constant operation, so vulkano does not fold a quotient by
-        // zero when it specializes a pipeline with BLOCK_WIDTH = 0.)
-        uint width = max(BLOCK_WIDTH, 1u);
-        uint block = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-        uint blocks_along_i = (params.grid_nx + width - 1u) / width;
-        uint local_index = gl_LocalInvocationIndex;
-        vi = (block % blocks_along_i) * width + local_index % width;
-        vj = (block / blocks_along_i) * (gl_WorkGroupSize.x / width) + local_index / width;
-        if (vi >= params.grid_nx || vj >= params.grid_ny) {
-            return;
-        }
-        i = vj * params.grid_nx + vi;
-    }
-    if (i >= params.vertex_count) {
-        return;
-    }
-    vec4 p = positions_in[i];
-    vec4 state = velocities_in[i];
-    // The vertex's spring forces, after its weight (a pin's are not needed).
-    vec3 force = vec3(0.0);
-    if (p.w != 0.0) {
-        if (EFFECT_GRAVITY) {
-            force += gravity_force(params.vertex_mass, params.gravity.xyz);
-        }
-        if (ANY_SPRINGS) {
-            add_stencil_springs(force, int(vi), int(vj), i, p.xyz, state.xyz);
-        }
-    }
-    update_vertex(i, p, state, force);
 }

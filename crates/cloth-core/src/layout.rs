@@ -541,30 +541,6 @@ pub fn block_invocations(nx: u32, ny: u32, block_width: u32, threads: u32) -> u3
     nx.div_ceil(block_width) * ny.div_ceil(threads / block_width) * threads
 }
 
-/// Rows each subgroup of the walking kernel walks down (`WALK_ROWS` in `cloth_step.comp`): the
-/// value of `CLOTH_WALK_ROWS`, 0 (the block kernel) when unset. An experiment for now.
-///
-/// # Errors
-/// The variable and its value when it is not a number from 0 to 4096.
-pub fn walk_rows() -> Result<u32, String> {
-    match std::env::var("CLOTH_WALK_ROWS") {
-        Ok(text) if !text.trim().is_empty() => text
-            .trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|n| *n <= 4096)
-            .ok_or_else(|| format!("the rows a subgroup walks CLOTH_WALK_ROWS={text}")),
-        _ => Ok(0),
-    }
-}
-
-/// Invocations the walking kernel dispatches for an `nx × ny` grid: one subgroup of
-/// `subgroup_size` lanes per `subgroup_size − 4` columns and `rows` rows (its two lanes at each
-/// side are a halo). `subgroup_size` must be at least 8.
-pub fn walk_invocations(nx: u32, ny: u32, subgroup_size: u32, rows: u32) -> u32 {
-    nx.div_ceil(subgroup_size - 4) * ny.div_ceil(rows.max(1)) * subgroup_size
-}
-
 /// [`workgroup_size`] as the error a GPU backend named `backend` returns when the knob (or
 /// `CLOTH_BLOCK_WIDTH`, [`block_width`]) is wrong.
 ///

@@ -53,8 +53,6 @@ pub const TILE_CONSTANT_IDS: [u32; 4] = [102, 103, 104, 106];
 /// Specialization-constant id of `BLOCK_WIDTH` in `cloth_step.comp`
 /// (`cloth_core::layout::block_width`).
 pub const BLOCK_WIDTH_CONSTANT_ID: u32 = 107;
-/// Specialization-constant id of `WALK_ROWS` in `cloth_step.comp` (`cloth_core::layout::walk_rows`).
-pub const WALK_ROWS_CONSTANT_ID: u32 = 108;
 /// Binding of XPBD's colour range, a dynamic uniform buffer.
 const COLOR_RANGE_BINDING: u32 = 10;
 
@@ -128,8 +126,6 @@ struct Kernel {
     module: Arc<ShaderModule>,
     layout: Arc<PipelineLayout>,
     effects: Vec<(u32, SpecializationConstant)>,
-    /// `WALK_ROWS` of the per-substep kernel (0: blocks).
-    walk_rows: u32,
 }
 
 impl Kernel {
@@ -159,7 +155,7 @@ impl Kernel {
                 .map_err(|e| device_error(format!("pipeline layout: {e:?}")))?,
         )
         .map_err(|e| device_error(format!("pipeline layout: {e}")))?;
-        Ok(Self { device: device.clone(), module, layout, effects, walk_rows: 0 })
+        Ok(Self { device: device.clone(), module, layout, effects })
     }
 
     /// The pipeline with the scene's effects, the workgroup size and `XPBD_PASS = stage`.
@@ -169,11 +165,7 @@ impl Kernel {
 
     /// The per-substep kernel's pipeline: `STAGE = stage`, and its block width.
     fn step_pipeline(&self, stage: u32, block_width: u32) -> Result<Arc<ComputePipeline>, SimError> {
-        self.pipeline_with([
-            (STAGE_CONSTANT_ID, stage),
-            (BLOCK_WIDTH_CONSTANT_ID, block_width),
-            (WALK_ROWS_CONSTANT_ID, self.walk_rows),
-        ])
+        self.pipeline_with([(STAGE_CONSTANT_ID, stage), (BLOCK_WIDTH_CONSTANT_ID, block_width)])
     }
 
     /// The pipeline with the scene's effects, the workgroup size and the given `u32` constants.
@@ -239,21 +231,7 @@ pub(crate) fn plan(
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
     let block_width = cloth_core::layout::grid_block_width(workgroup_size(), scene.cloth.resolution[0]);
-    let mut blocks = block_workgroups(scene, block_width, max_x);
-    // The walking kernel, where asked for and the device's subgroups can shuffle.
-    let properties = device.physical_device().properties();
-    let subgroup_size = properties.subgroup_size.unwrap_or(0);
-    let shuffles = properties.subgroup_supported_operations.is_some_and(|o| {
-        o.contains(vulkano::device::physical::SubgroupFeatures::SHUFFLE)
-    }) && properties
-        .subgroup_supported_stages
-        .is_some_and(|s| s.contains(vulkano::shader::ShaderStages::COMPUTE));
-    let walk_rows = cloth_core::layout::walk_rows().unwrap_or(0);
-    let walk_rows = if shuffles && subgroup_size >= 8 && workgroup_size().is_multiple_of(subgroup_size) { walk_rows } else { 0 };
-    if walk_rows > 0 {
-        let [nx, ny] = scene.cloth.resolution;
-        blocks = workgroups(cloth_core::layout::walk_invocations(nx, ny, subgroup_size, walk_rows), max_x);
-    }
+    let blocks = block_workgroups(scene, block_width, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let mut uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)> = Vec::new();
     let mut buffer_with = |usage: BufferUsage, bytes: Vec<u8>| -> Result<Subbuffer<[u8]>, SimError> {
@@ -266,8 +244,7 @@ pub(crate) fn plan(
             let rk4 = scene.integrator == Integrator::RungeKutta4;
             // RK4's per-vertex start state and sums (a placeholder for the other integrators).
             let rk4_scratch = device_local(storage, if rk4 { 64 * data.positions.len() as u64 } else { 64 })?;
-            let mut kernel = Kernel::new(device, scene, STEP_SPIRV, None)?;
-            kernel.walk_rows = walk_rows;
+            let kernel = Kernel::new(device, scene, STEP_SPIRV, None)?;
             let set = |[x_in, v_in, x_out, v_out]: [&State; 4]| {
                 kernel.set(
                     descriptors,
