@@ -33,8 +33,5 @@ pub const TILED_STEP_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/cl
 /// SPIR-V of the XPBD passes, compiled from `shaders/glsl/xpbd.comp` by `build.rs`.
 pub const XPBD_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/xpbd.spv"));
 
-/// EXPERIMENT: the packed-state Euler kernel (timing only).
-pub const PACKED_STEP_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/cloth_step_packed.spv"));
-
 /// Backend name used by the tools.
 pub const BACKEND_NAME: &str = "vulkano";

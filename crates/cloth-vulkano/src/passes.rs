@@ -268,44 +268,6 @@ pub(crate) fn plan(
             };
             let state_bytes = std::mem::size_of_val(data.positions.as_slice()) as u64;
             match scene.integrator {
-                Integrator::SemiImplicitEuler if std::env::var("CLOTH_DEBUG_PACKED").is_ok() => {
-                    // EXPERIMENT (timing only): a packed state of vec4 (x, v.x) + vec2 (v.y, v.z).
-                    let packed = Kernel::new(device, scene, crate::PACKED_STEP_SPIRV, None)?;
-                    let a: Vec<f32> = data
-                        .positions
-                        .iter()
-                        .zip(&data.velocities)
-                        .flat_map(|(x, v)| [x[0], x[1], x[2], v[0]])
-                        .collect();
-                    let b: Vec<f32> = data.velocities.iter().flat_map(|v| [v[1], v[2]]).collect();
-                    let a_bytes: Vec<u8> = bytemuck::cast_slice(&a).to_vec();
-                    let b_bytes: Vec<u8> = bytemuck::cast_slice(&b).to_vec();
-                    let a0 = buffer_with(storage, a_bytes.clone())?;
-                    let a1 = buffer_with(storage, a_bytes)?;
-                    let b0 = buffer_with(storage, b_bytes.clone())?;
-                    let b1 = buffer_with(storage, b_bytes)?;
-                    let pset = |ai: &Subbuffer<[u8]>, bi: &Subbuffer<[u8]>, ao: &Subbuffer<[u8]>, bo: &Subbuffer<[u8]>| {
-                        packed.set(
-                            descriptors,
-                            [
-                                WriteDescriptorSet::buffer(0, state.params.clone()),
-                                WriteDescriptorSet::buffer(1, state.spheres.clone()),
-                                WriteDescriptorSet::buffer(2, ai.clone()),
-                                WriteDescriptorSet::buffer(3, bi.clone()),
-                                WriteDescriptorSet::buffer(4, ao.clone()),
-                                WriteDescriptorSet::buffer(5, bo.clone()),
-                                WriteDescriptorSet::buffer(6, state.max_penetration.clone()),
-                            ],
-                        )
-                    };
-                    let sets = [pset(&a0, &b0, &a1, &b1)?, pset(&a1, &b1, &a0, &b0)?];
-                    Ok(SubstepPlan {
-                        pipelines: vec![packed.step_pipeline(0, block_width.max(1))?],
-                        passes: vec![pass(0, sets)],
-                        tiled: None,
-                        uploads,
-                    })
-                }
                 Integrator::SemiImplicitEuler => {
                     let sets = [set([&p[0], &v[0], &p[1], &v[1]])?, set([&p[1], &v[1], &p[0], &v[0]])?];
                     Ok(SubstepPlan {
