@@ -33,6 +33,43 @@ layout(set = 0, binding = 6, std430) buffer MaxPenetration { uint max_penetratio
 // running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
 layout(set = 0, binding = 7, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
 
+// Semi-implicit Euler's packed state (cloth_core::layout::PackedState; 64-byte placeholders for
+// the other integrators): 24 bytes a vertex instead of 32, for the substeps inside a submission.
+// The first substep of a submission reads the vec4 state above and writes the packed one, the
+// ones between read and write the packed state, the last reads it and writes the vec4 state
+// (PACKED_IN, PACKED_OUT): what the renderer and the read-backs see is the vec4 state.
+//   packed_xv: (x, v.x) a vertex; packed_v: (v.y, v.z) a vertex, then one more element whose x
+//   is the state's time, s (written by vertex 0's invocation); pin_bits: bit i % 32 of word
+//   i / 32 set where vertex i is pinned (the vec4 state keeps that in positions.w).
+layout(set = 0, binding = 8, std430) readonly buffer PackedXvIn { vec4 packed_xv_in[]; };
+layout(set = 0, binding = 9, std430) readonly buffer PackedVIn { vec2 packed_v_in[]; };
+layout(set = 0, binding = 10, std430) buffer PackedXvOut { vec4 packed_xv_out[]; };
+layout(set = 0, binding = 11, std430) buffer PackedVOut { vec2 packed_v_out[]; };
+layout(set = 0, binding = 12, std430) readonly buffer PinBits { uint pin_bits[]; };
+// 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
+layout(constant_id = 108) const uint PACKED_IN = 0u;
+layout(constant_id = 109) const uint PACKED_OUT = 0u;
+
+// The position of vertex `index` in the state read, m (grid.glsl's grid_normal reads it too).
+vec3 position_in(uint index) {
+    if (PACKED_IN != 0u) {
+        return packed_xv_in[index].xyz;
+    }
+    return positions_in[index].xyz;
+}
+
+// The position (m) and velocity (m/s) of vertex `index` in the state read.
+void state_in(uint index, out vec3 x, out vec3 v) {
+    if (PACKED_IN != 0u) {
+        vec4 xv = packed_xv_in[index];
+        x = xv.xyz;
+        v = vec3(xv.w, packed_v_in[index]);
+    } else {
+        x = positions_in[index].xyz;
+        v = velocities_in[index].xyz;
+    }
+}
+
 #include "grid.glsl"
 
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
@@ -55,8 +92,10 @@ void add_spring(inout vec3 force, int i, int j, uint index, bool interior, int d
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
     }
-    add_spring_force(force, x, positions_in[other].xyz, v, velocities_in[other].xyz,
-                     rest_length, params.stiffness[kind], damping);
+    vec3 x_other;
+    vec3 v_other;
+    state_in(other, x_other, v_other);
+    add_spring_force(force, x, x_other, v, v_other, rest_length, params.stiffness[kind], damping);
 }
 
 // The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the
@@ -116,12 +155,20 @@ void main() {
     if (i >= params.vertex_count) {
         return;
     }
-    vec4 p = positions_in[i];
-    vec3 x = p.xyz;
-    vec4 state = velocities_in[i];
-    vec3 v = state.xyz;
-    // The time of the state read (velocity.w), and of the state written.
-    float t = state.w;
+    vec3 x;
+    vec3 v;
+    state_in(i, x, v);
+    // Whether the vertex moves freely (positions.w, or its pin bit), and the time of the state
+    // read (velocities.w, or the packed state's clock) and of the state written.
+    bool free_vertex;
+    float t;
+    if (PACKED_IN != 0u) {
+        free_vertex = (pin_bits[i >> 5u] & (1u << (i & 31u))) == 0u;
+        t = packed_v_in[params.vertex_count].x;
+    } else {
+        free_vertex = positions_in[i].w != 0.0;
+        t = velocities_in[i].w;
+    }
     float dt = params.substep_dt;
     float half_dt = dt * 0.5;
     float t_out = t + dt;     // Euler, Verlet's kick and drift
@@ -138,7 +185,7 @@ void main() {
     }
     vec3 x_new = x;
     vec3 v_new = vec3(0.0);
-    if (p.w != 0.0) {
+    if (free_vertex) {
         float mass = params.vertex_mass;
         // The step the friction's stopping term refers to: what this stage's velocity update spans.
         float friction_dt = (STAGE == 1u || STAGE == 2u) ? half_dt : dt;
@@ -228,11 +275,19 @@ void main() {
         x_new = x + pin_step(t, t_out);
         v_new = pin_velocity(t_out);
     }
-    velocities_out[i] = vec4(v_new, t_out);
-    if (STAGE == 2u) {
-        return; // the second kick leaves the positions of the first stage as they are
+    if (PACKED_OUT != 0u) {
+        packed_xv_out[i] = vec4(x_new, v_new.x);
+        packed_v_out[i] = v_new.yz;
+        if (i == 0u) {
+            packed_v_out[params.vertex_count] = vec2(t_out, 0.0);
+        }
+    } else {
+        velocities_out[i] = vec4(v_new, t_out);
+        if (STAGE == 2u) {
+            return; // the second kick leaves the positions of the first stage as they are
+        }
+        positions_out[i] = vec4(x_new, free_vertex ? 1.0 : 0.0);
     }
-    positions_out[i] = vec4(x_new, p.w);
     // The deepest penetration is checked on the state that ends a substep, as on the CPU.
     // (Nested ifs: a constant condition stays one branch, which a compiler removes whole.)
     if (EFFECT_CONTACT) {

@@ -1,5 +1,5 @@
-// The cloth's unit normal at a vertex from its grid neighbours, read from positions_in (so each
-// kernel includes this after declaring it): (x[i+1,j] − x[i−1,j]) × (x[i,j+1] − x[i,j−1]),
+// The cloth's unit normal at a vertex from its grid neighbours, read by position_in(index) (so
+// each kernel includes this after defining it): (x[i+1,j] − x[i−1,j]) × (x[i,j+1] − x[i,j−1]),
 // one-sided at the edges (cloth_core::forces::grid_normal).
 vec3 grid_normal(uint index) {
     uint nx = params.grid_nx;
@@ -9,8 +9,8 @@ vec3 grid_normal(uint index) {
     uint right = i + 1u < nx ? i + 1u : i;
     uint down = j > 0u ? j - 1u : j;
     uint up = j + 1u < params.grid_ny ? j + 1u : j;
-    vec3 along_u = positions_in[j * nx + right].xyz - positions_in[j * nx + left].xyz;
-    vec3 along_v = positions_in[up * nx + i].xyz - positions_in[down * nx + i].xyz;
+    vec3 along_u = position_in(j * nx + right) - position_in(j * nx + left);
+    vec3 along_v = position_in(up * nx + i) - position_in(down * nx + i);
     vec3 n = cross(along_u, along_v);
     float len = sqrt(dot(n, n));
     if (len > 0.0) {

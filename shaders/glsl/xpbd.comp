@@ -44,6 +44,11 @@ layout(set = 0, binding = 10, std140) uniform ColorRange {
     uint pad;
 } color;
 
+// The position of vertex `index` in the state read, m (for grid.glsl's grid_normal).
+vec3 position_in(uint index) {
+    return positions_in[index].xyz;
+}
+
 #include "grid.glsl"
 
 // Δλ = (−C − α̃ λ) / (w_a + w_b + α̃), α̃ = 1/(k Δt²); the ends move by ±w Δλ n.

@@ -26,6 +26,46 @@ override STAGE: u32 = 0u;
 // running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
 @group(0) @binding(7) var<storage, read_write> rk4_scratch: array<vec4<f32>>;
 
+// Semi-implicit Euler's packed state (cloth_core::layout::PackedState; 64-byte placeholders for
+// the other integrators): 24 bytes a vertex instead of 32, for the substeps inside a submission.
+// The first substep of a submission reads the vec4 state above and writes the packed one, the
+// ones between read and write the packed state, the last reads it and writes the vec4 state
+// (PACKED_IN, PACKED_OUT): what the renderer and the read-backs see is the vec4 state.
+//   packed_xv: (x, v.x) a vertex; packed_v: (v.y, v.z) a vertex, then one more element whose x
+//   is the state's time, s (written by vertex 0's invocation); pin_bits: bit i % 32 of word
+//   i / 32 set where vertex i is pinned (the vec4 state keeps that in positions.w).
+@group(0) @binding(8) var<storage, read> packed_xv_in: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read> packed_v_in: array<vec2<f32>>;
+@group(0) @binding(10) var<storage, read_write> packed_xv_out: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read_write> packed_v_out: array<vec2<f32>>;
+@group(0) @binding(12) var<storage, read> pin_bits: array<u32>;
+// 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
+override PACKED_IN: u32 = 0u;
+override PACKED_OUT: u32 = 0u;
+
+// The position of vertex `index` in the state read, m (common.wgsl's grid_normal reads it too).
+fn position_in(index: u32) -> vec3<f32> {
+    if (PACKED_IN != 0u) {
+        return packed_xv_in[index].xyz;
+    }
+    return positions_in[index].xyz;
+}
+
+// The position (m) and velocity (m/s) of a vertex.
+struct VertexState {
+    x: vec3<f32>,
+    v: vec3<f32>,
+}
+
+// The state of vertex `index` in the state read.
+fn state_in(index: u32) -> VertexState {
+    if (PACKED_IN != 0u) {
+        let xv = packed_xv_in[index];
+        return VertexState(xv.xyz, vec3<f32>(xv.w, packed_v_in[index]));
+    }
+    return VertexState(positions_in[index].xyz, velocities_in[index].xyz);
+}
+
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
 // (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
 // the given rest length. `interior`: (i, j) is two or more vertices from every edge, so every
@@ -46,8 +86,8 @@ fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u32, inter
     if (EFFECT_SPRING_DAMPING) {
         damping = params.damping[kind];
     }
-    add_spring_force(force, x, positions_in[other].xyz, v, velocities_in[other].xyz,
-                     rest_length, params.stiffness[kind], damping);
+    let neighbour = state_in(other);
+    add_spring_force(force, x, neighbour.x, v, neighbour.v, rest_length, params.stiffness[kind], damping);
 }
 
 // The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the
@@ -107,12 +147,20 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if (i >= params.vertex_count) {
         return;
     }
-    let p = positions_in[i];
-    let x = p.xyz;
-    let state = velocities_in[i];
-    let v = state.xyz;
-    // The time of the state read (velocity.w), and of the state written.
-    let t = state.w;
+    let own = state_in(i);
+    let x = own.x;
+    let v = own.v;
+    // Whether the vertex moves freely (positions.w, or its pin bit), and the time of the state
+    // read (velocities.w, or the packed state's clock) and of the state written.
+    var free_vertex: bool;
+    var t: f32;
+    if (PACKED_IN != 0u) {
+        free_vertex = (pin_bits[i >> 5u] & (1u << (i & 31u))) == 0u;
+        t = packed_v_in[params.vertex_count].x;
+    } else {
+        free_vertex = positions_in[i].w != 0.0;
+        t = velocities_in[i].w;
+    }
     let dt = params.substep_dt;
     let half = dt * 0.5;
     var t_out = t + dt;       // Euler, Verlet's kick and drift
@@ -131,7 +179,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     }
     var x_new = x;
     var v_new = vec3<f32>(0.0);
-    if (p.w != 0.0) {
+    if (free_vertex) {
         let mass = params.vertex_mass;
         // The step the friction's stopping term refers to: what this stage's velocity update spans.
         var friction_dt = dt;
@@ -226,11 +274,19 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         x_new = x + pin_step(t, t_out);
         v_new = pin_velocity(t_out);
     }
-    velocities_out[i] = vec4<f32>(v_new, t_out);
-    if (STAGE == 2u) {
-        return; // the second kick leaves the positions of the first stage as they are
+    if (PACKED_OUT != 0u) {
+        packed_xv_out[i] = vec4<f32>(x_new, v_new.x);
+        packed_v_out[i] = v_new.yz;
+        if (i == 0u) {
+            packed_v_out[params.vertex_count] = vec2<f32>(t_out, 0.0);
+        }
+    } else {
+        velocities_out[i] = vec4<f32>(v_new, t_out);
+        if (STAGE == 2u) {
+            return; // the second kick leaves the positions of the first stage as they are
+        }
+        positions_out[i] = vec4<f32>(x_new, select(0.0, 1.0, free_vertex));
     }
-    positions_out[i] = vec4<f32>(x_new, p.w);
     // The deepest penetration is checked on the state that ends a substep, as on the CPU.
     // (Nested ifs: a constant condition stays one branch, which a compiler removes whole.)
     if (EFFECT_CONTACT) {

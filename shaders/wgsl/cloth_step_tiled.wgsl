@@ -21,6 +21,12 @@ const HALO: u32 = 2u * FUSED_SUBSTEPS;
 @group(0) @binding(5) var<storage, read_write> velocities_out: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> max_penetration_bits: atomic<u32>;
 
+// common.wgsl's grid_normal reads positions through this (this kernel computes its normals from
+// the tile instead, below).
+fn position_in(index: u32) -> vec3<f32> {
+    return positions_in[index].xyz;
+}
+
 // The tile's state, one array per component (24 bytes a cell): cell c = a + b · TILE_WIDTH holds
 // the grid vertex (a, b) cells from the tile's corner (the output block's corner less the halo).
 var<workgroup> tile_px: array<f32, TILE_CELLS>;

@@ -209,8 +209,8 @@ fn sphere_velocity(s: Sphere, t: f32) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
-// The cloth's unit normal at vertex i from its grid neighbours in positions_in (declared by each
-// kernel): (x[i+1,j] − x[i−1,j]) × (x[i,j+1] − x[i,j−1]), one-sided at the edges
+// The cloth's unit normal at vertex i from its grid neighbours' positions, position_in(index)
+// (defined by each kernel that calls this): (x[i+1,j] − x[i−1,j]) × (x[i,j+1] − x[i,j−1]), one-sided at the edges
 // (cloth_core::forces::grid_normal).
 fn grid_normal(index: u32) -> vec3<f32> {
     let nx = params.grid_nx;
@@ -224,8 +224,8 @@ fn grid_normal(index: u32) -> vec3<f32> {
     if (j > 0u) { down = j - 1u; }
     var up = j;
     if (j + 1u < params.grid_ny) { up = j + 1u; }
-    let along_u = positions_in[j * nx + right].xyz - positions_in[j * nx + left].xyz;
-    let along_v = positions_in[up * nx + i].xyz - positions_in[down * nx + i].xyz;
+    let along_u = position_in(j * nx + right) - position_in(j * nx + left);
+    let along_v = position_in(up * nx + i) - position_in(down * nx + i);
     let n = cross(along_u, along_v);
     let length = sqrt(dot(n, n));
     if (length > 0.0) {

@@ -21,6 +21,11 @@ override XPBD_PASS: u32 = 0u;
 @group(0) @binding(2) var<storage, read> constraints: array<Constraint>;
 // The state at the substep's start (w: 1 free, 0 pinned).
 @group(0) @binding(3) var<storage, read> positions_in: array<vec4<f32>>;
+
+// The position of vertex `index` in the state read, m (for common.wgsl's grid_normal).
+fn position_in(index: u32) -> vec3<f32> {
+    return positions_in[index].xyz;
+}
 @group(0) @binding(4) var<storage, read> velocities_in: array<vec4<f32>>;
 // The predicted positions, projected in place; then the new state.
 @group(0) @binding(5) var<storage, read_write> positions_out: array<vec4<f32>>;

@@ -11,11 +11,20 @@
 //! | positions (×2, ping-pong) | `[f32; 4]`: xyz m, w = 1 free / 0 pinned | vertices |
 //! | velocities (×2, ping-pong) | `[f32; 4]`: xyz m/s, w = the state's time, s | vertices |
 //! | spheres | [`GpuSphere`] | spheres (at least 1 slot) |
+//! | parameters (uniform) | [`GpuSimParams`] | 1 |
 //!
 //! Velocities carry the time of their state in `w` (s, f32): every kernel reads the time of the
 //! state it reads there and writes the time of the state it writes, so moving pins, moving
 //! spheres and gusts know the time of each stage without a host round trip.
-//! | parameters (uniform) | [`GpuSimParams`] | 1 |
+//!
+//! Semi-implicit Euler adds its packed state ([`PackedState`]), which the substeps inside one
+//! submission pass to each other: 24 bytes a vertex instead of the two `vec4`s' 32.
+//!
+//! | buffer | element | count |
+//! |---|---|---|
+//! | packed `(x, v.x)` (×2, ping-pong) | `[f32; 4]`: m, m, m, m/s | vertices |
+//! | packed `(v.y, v.z)` (×2, ping-pong) | `[f32; 2]`: m/s; the last element's first is the state's time, s | vertices + 1 |
+//! | pin bits | `u32`: bit `i % 32` of word `i / 32` set where vertex `i` is pinned | ⌈vertices / 32⌉ (at least 1) |
 //!
 //! XPBD (`Integrator::Xpbd`) adds, for its constraint projection:
 //!
@@ -198,6 +207,75 @@ impl GpuSimParams {
     }
 }
 
+/// Semi-implicit Euler's packed state: what one substep hands the next inside a submission.
+///
+/// A substep reads and writes each vertex's position and velocity, and at large grids the time
+/// a substep takes is mostly that traffic (docs/performance.md). The two `vec4`s of the state
+/// the read-backs and the renderer see carry 8 bytes of flags (`positions.w` free or pinned,
+/// `velocities.w` the time); packed, a vertex is 24 bytes: `(x, y, z, v.x)` and `(v.y, v.z)`.
+/// The pins move to a bit mask read once a substep, the time to one element after the last
+/// vertex's `(v.y, v.z)`. The first substep of a submission reads the `vec4` state and writes
+/// the packed one, the last reads the packed state and writes the `vec4`s (`PACKED_IN`,
+/// `PACKED_OUT` in `cloth_step.wgsl` / `.comp`), so nothing else sees the packing. The
+/// arithmetic is the same, so the results are bit for bit those of the unpacked kernel.
+pub struct PackedState;
+
+impl PackedState {
+    /// Bytes a vertex takes in the packed state (against 32 in the two `vec4`s).
+    pub const VERTEX_BYTES: u64 = 24;
+
+    /// Sizes in bytes of the two buffers of one packed state for `vertices` vertices:
+    /// `(x, v.x)`, 16 bytes a vertex, and `(v.y, v.z)`, 8 bytes a vertex and one more element
+    /// for the time.
+    pub fn buffer_bytes(vertices: u64) -> [u64; 2] {
+        [16 * vertices, 8 * (vertices + 1)]
+    }
+
+    /// The pin bit mask of a `vec4` position buffer (`w = 0` pinned): bit `i % 32` of word
+    /// `i / 32` set where vertex `i` is pinned; at least one word.
+    pub fn pin_bits(positions: &[[f32; 4]]) -> Vec<u32> {
+        let mut bits = vec![0u32; positions.len().div_ceil(32).max(1)];
+        for (i, p) in positions.iter().enumerate() {
+            if p[3] == 0.0 {
+                bits[i / 32] |= 1 << (i % 32);
+            }
+        }
+        bits
+    }
+
+    /// Whether semi-implicit Euler's one-substep-per-dispatch kernel runs the substeps inside a
+    /// submission on the packed state: yes, unless the environment variable
+    /// `CLOTH_PACKED_STATE` is `0` (a knob for benchmarks, to measure what packing gains).
+    ///
+    /// # Errors
+    /// The variable and its value when it is neither `0` nor `1`.
+    pub fn enabled() -> Result<bool, String> {
+        Self::enabled_from(std::env::var("CLOTH_PACKED_STATE").ok().as_deref())
+    }
+
+    fn enabled_from(explicit: Option<&str>) -> Result<bool, String> {
+        match explicit.map(str::trim) {
+            None | Some("") | Some("1") => Ok(true),
+            Some("0") => Ok(false),
+            Some(other) => Err(format!("CLOTH_PACKED_STATE={other} (0 or 1)")),
+        }
+    }
+
+    /// [`PackedState::enabled`] as the error a GPU backend named `backend` returns when the knob
+    /// is wrong.
+    ///
+    /// # Errors
+    /// [`SimError::Unsupported`](crate::error::SimError::Unsupported) naming the variable, its
+    /// value and the fix.
+    pub fn checked_enabled(backend: &'static str) -> Result<bool, crate::error::SimError> {
+        Self::enabled().map_err(|what| crate::error::SimError::Unsupported {
+            backend,
+            what,
+            fix: "set it to 0 (the two vec4s throughout) or 1, or unset it for the default, 1".into(),
+        })
+    }
+}
+
 /// The contents of every GPU buffer of a simulation, ready to upload.
 #[derive(Clone, Debug)]
 pub struct GpuBuffers {
@@ -215,6 +293,9 @@ pub struct GpuBuffers {
     /// XPBD only (empty otherwise): the contents of the colour-range uniform buffer,
     /// [`COLOR_RANGE_BUFFER_BYTES`] bytes.
     pub color_ranges: Vec<u8>,
+    /// Semi-implicit Euler only (empty otherwise): the pin bits of its packed state
+    /// ([`PackedState::pin_bits`]).
+    pub pin_bits: Vec<u32>,
 }
 
 impl GpuBuffers {
@@ -222,7 +303,7 @@ impl GpuBuffers {
     pub fn new(model: &ClothModel) -> Self {
         let scene = &model.scene;
         let v0 = scene.cloth.initial_velocity;
-        let positions = model
+        let positions: Vec<[f32; 4]> = model
             .grid
             .positions
             .iter()
@@ -245,7 +326,20 @@ impl GpuBuffers {
         }
         let (constraints, color_ranges) =
             if scene.integrator == Integrator::Xpbd { xpbd_constraints(model) } else { (Vec::new(), Vec::new()) };
-        Self { params: GpuSimParams::from_scene(scene), positions, velocities, spheres, constraints, color_ranges }
+        let pin_bits = if scene.integrator == Integrator::SemiImplicitEuler {
+            PackedState::pin_bits(&positions)
+        } else {
+            Vec::new()
+        };
+        Self {
+            params: GpuSimParams::from_scene(scene),
+            positions,
+            velocities,
+            spheres,
+            constraints,
+            color_ranges,
+            pin_bits,
+        }
     }
 
     /// XPBD: the range of colour `color` in iteration `iteration`, as stored in `color_ranges`.
@@ -254,8 +348,9 @@ impl GpuBuffers {
         self.color_ranges.get(at..at + size_of::<GpuColorRange>()).map(bytemuck::pod_read_unaligned).unwrap_or_default()
     }
 
-    /// Bytes of device memory these buffers take, counting both ping-pong copies and the XPBD
-    /// multipliers and normal corrections (not the integrators' small scratch buffers).
+    /// Bytes of device memory these buffers take, counting both ping-pong copies, semi-implicit
+    /// Euler's packed states and the XPBD multipliers and normal corrections (not the
+    /// integrators' small scratch buffers).
     pub fn device_bytes(&self) -> u64 {
         let b = |n: usize, size: usize| (n * size) as u64;
         let xpbd = if self.constraints.is_empty() {
@@ -263,8 +358,15 @@ impl GpuBuffers {
         } else {
             b(self.constraints.len(), 16 + 4) + b(self.positions.len(), 4) + self.color_ranges.len() as u64
         };
+        let packed = if self.pin_bits.is_empty() {
+            0
+        } else {
+            let [xv, v] = PackedState::buffer_bytes(self.positions.len() as u64);
+            2 * (xv + v) + b(self.pin_bits.len(), 4)
+        };
         2 * b(self.positions.len(), 16)
             + 2 * b(self.velocities.len(), 16)
+            + packed
             + b(self.spheres.len(), 64)
             + size_of::<GpuSimParams>() as u64
             + xpbd
@@ -431,7 +533,14 @@ impl MemoryEstimate {
         } else {
             (0, 0)
         };
-        let device_bytes = 4 * 16 * vertices + rk4 + 64 * scene.spheres.len().max(1) as u128 + 160 + xpbd;
+        // Semi-implicit Euler: two packed states (24 B a vertex and 8 B for the time each) and
+        // the pin bits.
+        let packed = if scene.integrator == Integrator::SemiImplicitEuler {
+            2 * (24 * vertices + 8) + 4 * vertices.div_ceil(32).max(1)
+        } else {
+            0
+        };
+        let device_bytes = 4 * 16 * vertices + rk4 + packed + 64 * scene.spheres.len().max(1) as u128 + 160 + xpbd;
         // Host: f64 positions + pins, the spring list (32 B each) and f64 lists (24 B each).
         let host_bytes = vertices * (24 + 1 + 4) + springs * 32 + ends * 24 + device_bytes;
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
@@ -619,6 +728,26 @@ mod tests {
                 assert_eq!(MemoryEstimate::of(&scene).device_bytes, buffers.device_bytes(), "{res:?} {integrator:?}");
             }
         }
+    }
+
+    #[test]
+    fn pin_bits_mark_the_pinned_vertices() {
+        let mut positions = vec![[0.0, 0.0, 0.0, 1.0]; 70];
+        for i in [0, 31, 32, 69] {
+            positions[i][3] = 0.0;
+        }
+        assert_eq!(PackedState::pin_bits(&positions), vec![1 | 1 << 31, 1, 1 << 5]);
+        assert_eq!(PackedState::pin_bits(&[]), vec![0]);
+        assert_eq!(PackedState::buffer_bytes(10), [160, 88]);
+    }
+
+    #[test]
+    fn the_packed_state_knob_takes_0_or_1() {
+        assert_eq!(PackedState::enabled_from(None), Ok(true));
+        assert_eq!(PackedState::enabled_from(Some("0")), Ok(false));
+        assert_eq!(PackedState::enabled_from(Some(" 1 ")), Ok(true));
+        let wrong = PackedState::enabled_from(Some("yes")).unwrap_err();
+        assert!(wrong.contains("CLOTH_PACKED_STATE=yes"), "{wrong}");
     }
 
     #[test]

@@ -11,7 +11,9 @@
 //! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
 //! buffer `1 − k`; each pass has one descriptor set per `k`. Semi-implicit Euler also has a tiled
 //! pass ([`TiledPass`], `cloth_core::tiling`) that advances several substeps in one dispatch, from
-//! `k` to `1 − k` likewise; the substeps left over run one at a time.
+//! `k` to `1 − k` likewise; the substeps left over run one at a time. Where it does not tile,
+//! semi-implicit Euler runs the substeps inside one submission on its packed state
+//! ([`PackedPasses`], `cloth_core::layout::PackedState`).
 
 use std::sync::Arc;
 
@@ -53,6 +55,9 @@ pub const TILE_CONSTANT_IDS: [u32; 4] = [102, 103, 104, 106];
 /// Specialization-constant id of `BLOCK_WIDTH` in `cloth_step.comp`
 /// (`cloth_core::layout::block_width`).
 pub const BLOCK_WIDTH_CONSTANT_ID: u32 = 107;
+/// Specialization-constant ids of `PACKED_IN` and `PACKED_OUT` in `cloth_step.comp`
+/// (`cloth_core::layout::PackedState`).
+pub const PACKED_CONSTANT_IDS: [u32; 2] = [108, 109];
 /// Binding of XPBD's colour range, a dynamic uniform buffer.
 const COLOR_RANGE_BINDING: u32 = 10;
 
@@ -86,8 +91,28 @@ pub(crate) struct SubstepPlan {
     pub passes: Vec<Pass>,
     /// The pass that advances several semi-implicit Euler substeps at once, if any.
     pub tiled: Option<TiledPass>,
+    /// Semi-implicit Euler's passes on its packed state, if it has them.
+    pub packed: Option<PackedPasses>,
     /// `(buffer, bytes)` to upload before the first substep.
     pub uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)>,
+}
+
+/// Semi-implicit Euler's substeps on its packed state (`cloth_core::layout::PackedState`): a
+/// submission of `n ≥ 2` substeps runs `first` (the `vec4` state `k` → packed state 0), `n − 2`
+/// times `middle` (packed `m` → packed `1 − m`) and `last` (packed `m` → the `vec4` state
+/// `1 − k`), so the `vec4` state flips once a submission.
+pub(crate) struct PackedPasses {
+    /// The pipelines of `first`, `middle` and `last`.
+    pub pipelines: [Arc<ComputePipeline>; 3],
+    /// `first`'s descriptor set when the `vec4` state `k` is current.
+    pub first: [Arc<DescriptorSet>; 2],
+    /// `middle`'s descriptor set reading packed state `m`.
+    pub middle: [Arc<DescriptorSet>; 2],
+    /// `last`'s descriptor set when the `vec4` state `k` is current, reading packed state `m`:
+    /// `last[k][m]`.
+    pub last: [[Arc<DescriptorSet>; 2]; 2],
+    /// Workgroups along x, y, z (those of the per-substep kernel).
+    pub workgroups: [u32; 3],
 }
 
 /// One dispatch that advances [`TiledPass::substeps`] semi-implicit Euler substeps at once.
@@ -244,8 +269,28 @@ pub(crate) fn plan(
             let rk4 = scene.integrator == Integrator::RungeKutta4;
             // RK4's per-vertex start state and sums (a placeholder for the other integrators).
             let rk4_scratch = device_local(storage, if rk4 { 64 * data.positions.len() as u64 } else { 64 })?;
+            // Semi-implicit Euler's packed states and pin bits (cloth_core::layout::PackedState);
+            // 64-byte placeholders for the passes that do not use them (a read-only one, and one
+            // for each written binding).
+            let placeholders = [device_local(storage, 64)?, device_local(storage, 64)?, device_local(storage, 64)?];
+            let euler = scene.integrator == Integrator::SemiImplicitEuler;
+            let packed_buffers = if euler {
+                let [xv_bytes, v_bytes] = cloth_core::layout::PackedState::buffer_bytes(data.positions.len() as u64);
+                let pins = buffer_with(storage, bytemuck::cast_slice(&data.pin_bits).to_vec())?;
+                Some((
+                    [device_local(storage, xv_bytes)?, device_local(storage, xv_bytes)?],
+                    [device_local(storage, v_bytes)?, device_local(storage, v_bytes)?],
+                    pins,
+                ))
+            } else {
+                None
+            };
             let kernel = Kernel::new(device, scene, STEP_SPIRV, None)?;
-            let set = |[x_in, v_in, x_out, v_out]: [&State; 4]| {
+            // The packed bindings 8-12: (x, v.x) in, (v.y, v.z) in, (x, v.x) out, (v.y, v.z) out,
+            // pin bits.
+            let unpacked: [&Subbuffer<[u8]>; 5] =
+                [&placeholders[0], &placeholders[0], &placeholders[1], &placeholders[2], &placeholders[0]];
+            let set_with = |[x_in, v_in, x_out, v_out]: [&State; 4], packed: [&Subbuffer<[u8]>; 5]| {
                 kernel.set(
                     descriptors,
                     [
@@ -257,9 +302,15 @@ pub(crate) fn plan(
                         WriteDescriptorSet::buffer(5, v_out.clone()),
                         WriteDescriptorSet::buffer(6, state.max_penetration.clone()),
                         WriteDescriptorSet::buffer(7, rk4_scratch.clone()),
+                        WriteDescriptorSet::buffer(8, packed[0].clone()),
+                        WriteDescriptorSet::buffer(9, packed[1].clone()),
+                        WriteDescriptorSet::buffer(10, packed[2].clone()),
+                        WriteDescriptorSet::buffer(11, packed[3].clone()),
+                        WriteDescriptorSet::buffer(12, packed[4].clone()),
                     ],
                 )
             };
+            let set = |buffers: [&State; 4]| set_with(buffers, unpacked);
             let pass = |pipeline: usize, sets: [Arc<DescriptorSet>; 2]| Pass {
                 pipeline,
                 sets,
@@ -270,10 +321,42 @@ pub(crate) fn plan(
             match scene.integrator {
                 Integrator::SemiImplicitEuler => {
                     let sets = [set([&p[0], &v[0], &p[1], &v[1]])?, set([&p[1], &v[1], &p[0], &v[0]])?];
+                    let packed = match &packed_buffers {
+                        Some((xv, pv, pins)) if cloth_core::layout::PackedState::checked_enabled(BACKEND_NAME)? => {
+                            // Packed state m in, 1 - m out; the vec4 bindings the pass does not use
+                            // hold state buffers it does not touch either.
+                            let packed_io = |m: usize| [&xv[m], &pv[m], &xv[1 - m], &pv[1 - m], pins];
+                            let pipeline = |packed_in: u32, packed_out: u32| {
+                                kernel.pipeline_with([
+                                    (STAGE_CONSTANT_ID, 0),
+                                    (BLOCK_WIDTH_CONSTANT_ID, block_width),
+                                    (PACKED_CONSTANT_IDS[0], packed_in),
+                                    (PACKED_CONSTANT_IDS[1], packed_out),
+                                ])
+                            };
+                            let for_k = |k: usize, packed: [&Subbuffer<[u8]>; 5]| {
+                                set_with([&p[k], &v[k], &p[1 - k], &v[1 - k]], packed)
+                            };
+                            Some(PackedPasses {
+                                pipelines: [pipeline(0, 1)?, pipeline(1, 1)?, pipeline(1, 0)?],
+                                // first writes packed state 0 (reading nothing packed: state 1
+                                // sits in the input bindings).
+                                first: [for_k(0, packed_io(1))?, for_k(1, packed_io(1))?],
+                                middle: [for_k(0, packed_io(0))?, for_k(0, packed_io(1))?],
+                                last: [
+                                    [for_k(0, packed_io(0))?, for_k(0, packed_io(1))?],
+                                    [for_k(1, packed_io(0))?, for_k(1, packed_io(1))?],
+                                ],
+                                workgroups: blocks,
+                            })
+                        }
+                        _ => None,
+                    };
                     Ok(SubstepPlan {
                         pipelines: vec![kernel.step_pipeline(0, block_width)?],
                         passes: vec![pass(0, sets)],
                         tiled: tiled_pass(device, scene, state, descriptors, Tiling::Auto)?,
+                        packed,
                         uploads,
                     })
                 }
@@ -288,6 +371,7 @@ pub(crate) fn plan(
                         pipelines: vec![kernel.step_pipeline(1, block_width)?, kernel.step_pipeline(2, block_width)?],
                         passes: vec![pass(0, first), pass(1, second)],
                         tiled: None,
+                        packed: None,
                         uploads,
                     })
                 }
@@ -316,7 +400,7 @@ pub(crate) fn plan(
                         pipelines.push(kernel.step_pipeline(2 + n, block_width)?);
                         passes.push(pass(n as usize - 1, stage(n)?));
                     }
-                    Ok(SubstepPlan { pipelines, passes, tiled: None, uploads })
+                    Ok(SubstepPlan { pipelines, passes, tiled: None, packed: None, uploads })
                 }
             }
         }
@@ -373,7 +457,7 @@ pub(crate) fn plan(
                 }
             }
             passes.push(pass(3, vertices, 0));
-            Ok(SubstepPlan { pipelines, passes, tiled: None, uploads })
+            Ok(SubstepPlan { pipelines, passes, tiled: None, packed: None, uploads })
         }
     }
 }

@@ -210,6 +210,38 @@ impl VulkanoSimulator {
         }
         let mut bound = None;
         let mut left = substeps;
+        // Semi-implicit Euler without the tiled kernel: the substeps on the packed state, from
+        // the vec4 state `current` to `1 - current` (passes.rs, PackedPasses).
+        if let Some(packed) = &self.plan.packed
+            && self.plan.tiled.is_none()
+            && substeps >= 2
+        {
+            let k = self.current;
+            let mut dispatch = |pipeline: &Arc<vulkano::pipeline::ComputePipeline>,
+                                set: &Arc<vulkano::descriptor_set::DescriptorSet>|
+             -> Result<(), SimError> {
+                let rec = &mut frame.recording;
+                // SAFETY: as below; the packed buffers hold a vertex count's elements (and the
+                // time after them), the pin bits a word per 32 vertices.
+                unsafe {
+                    rec.bind_pipeline_compute(pipeline).map_err(|e| device_error(format!("binding: {e}")))?;
+                    rec.bind_descriptor_sets(PipelineBindPoint::Compute, pipeline.layout(), 0, &[set.as_raw()], &[])
+                        .map_err(|e| device_error(format!("binding: {e}")))?;
+                    rec.dispatch(packed.workgroups).map_err(|e| device_error(format!("dispatch: {e}")))?;
+                }
+                frame.between_dispatches().map_err(device_error)
+            };
+            let [first, middle, last] = &packed.pipelines;
+            dispatch(first, &packed.first[k])?;
+            let mut m = 0;
+            for _ in 0..substeps - 2 {
+                dispatch(middle, &packed.middle[m])?;
+                m = 1 - m;
+            }
+            dispatch(last, &packed.last[k][m])?;
+            self.current = 1 - k;
+            left = 0;
+        }
         while left > 0 {
             // Several substeps in one tiled dispatch where they fit, the rest one at a time.
             if let Some(tiled) = &self.plan.tiled

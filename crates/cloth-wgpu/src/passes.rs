@@ -10,7 +10,9 @@
 //! Every pass of a substep reads the state buffer `k` that is current and leaves the new state in
 //! buffer `1 − k`; each pass has one bind group per `k`. Semi-implicit Euler also has a tiled pass
 //! ([`TiledPass`], `cloth_core::tiling`) that advances several substeps in one dispatch, from `k`
-//! to `1 − k` likewise; the substeps left over run one at a time.
+//! to `1 − k` likewise; the substeps left over run one at a time. Where it does not tile,
+//! semi-implicit Euler runs the substeps inside one submission on its packed state
+//! ([`PackedPasses`], `cloth_core::layout::PackedState`).
 
 use cloth_core::coloring::COLOR_COUNT;
 use cloth_core::integrator::XPBD_ITERATIONS;
@@ -57,6 +59,26 @@ pub(crate) struct SubstepPlan {
     pub pipelines: Vec<wgpu::ComputePipeline>,
     pub passes: Vec<Pass>,
     pub tiled: Option<TiledPass>,
+    /// Semi-implicit Euler's passes on its packed state, if it has them.
+    pub packed: Option<PackedPasses>,
+}
+
+/// Semi-implicit Euler's substeps on its packed state (`cloth_core::layout::PackedState`): a
+/// submission of `n ≥ 2` substeps runs `first` (the `vec4` state `k` → packed state 0), `n − 2`
+/// times `middle` (packed `m` → packed `1 − m`) and `last` (packed `m` → the `vec4` state
+/// `1 − k`), so the `vec4` state flips once a submission.
+pub(crate) struct PackedPasses {
+    /// The pipelines of `first`, `middle` and `last`.
+    pub pipelines: [wgpu::ComputePipeline; 3],
+    /// `first`'s bind group when the `vec4` state `k` is current.
+    pub first: [wgpu::BindGroup; 2],
+    /// `middle`'s bind group reading packed state `m`.
+    pub middle: [wgpu::BindGroup; 2],
+    /// `last`'s bind group when the `vec4` state `k` is current, reading packed state `m`:
+    /// `last[k][m]`.
+    pub last: [[wgpu::BindGroup; 2]; 2],
+    /// Workgroups along x and y (those of the per-substep kernel).
+    pub workgroups: (u32, u32),
 }
 
 /// One dispatch that advances [`TiledPass::substeps`] semi-implicit Euler substeps at once.
@@ -241,9 +263,9 @@ pub(crate) fn plan(
     let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
     };
-    // The force kernel binds 7 storage buffers, XPBD's 9 (the WebGPU default allows 8; every
+    // The force kernel binds 12 storage buffers, XPBD's 9 (the WebGPU default allows 8; every
     // Vulkan device we know allows more, and the context requests what the adapter offers).
-    let storage_needed = if scene.integrator == Integrator::Xpbd { 9 } else { 7 };
+    let storage_needed = if scene.integrator == Integrator::Xpbd { 9 } else { 12 };
     if device.limits().max_storage_buffers_per_shader_stage < storage_needed {
         return Err(SimError::Unsupported {
             backend: BACKEND_NAME,
@@ -267,20 +289,72 @@ pub(crate) fn plan(
             // RK4's per-vertex start state and sums (a placeholder for the other integrators).
             let scratch_bytes = if rk4 { 64 * data.positions.len() } else { 64 };
             let rk4_scratch = init("cloth RK4 scratch", &vec![0u8; scratch_bytes], storage);
+            // Semi-implicit Euler's packed states and pin bits (cloth_core::layout::PackedState);
+            // 64-byte placeholders for the passes that do not use them (a read-only one, and one
+            // for each written binding: a binding must not alias another of the same dispatch).
+            let placeholders = ["read", "(x, v.x) out", "(v.y, v.z) out"]
+                .map(|what| init(&format!("cloth packed-state placeholder, {what}"), &[0u8; 64], storage));
+            let packed_buffers = (scene.integrator == Integrator::SemiImplicitEuler).then(|| {
+                let [xv_bytes, v_bytes] = cloth_core::layout::PackedState::buffer_bytes(data.positions.len() as u64);
+                let empty = |label: String, size: u64| {
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(&label),
+                        size,
+                        usage: storage,
+                        mapped_at_creation: false,
+                    })
+                };
+                (
+                    name.map(|n| empty(format!("cloth packed (x, v.x) {n}"), xv_bytes)),
+                    name.map(|n| empty(format!("cloth packed (v.y, v.z) and time {n}"), v_bytes)),
+                    init("cloth pin bits", bytemuck::cast_slice(&data.pin_bits), storage),
+                )
+            });
             let kernel = Kernel::new(
                 device,
                 scene,
                 "cloth_step.wgsl",
                 STEP_SHADER,
                 "substep",
-                &[STATE_BINDINGS.as_slice(), &[Binding::Storage { read_only: false }]].concat(), // + RK4 scratch
+                &[
+                    STATE_BINDINGS.as_slice(),
+                    &[
+                        Binding::Storage { read_only: false }, // RK4 scratch
+                        Binding::Storage { read_only: true },  // packed (x, v.x) in
+                        Binding::Storage { read_only: true },  // packed (v.y, v.z) in
+                        Binding::Storage { read_only: false }, // packed (x, v.x) out
+                        Binding::Storage { read_only: false }, // packed (v.y, v.z) out
+                        Binding::Storage { read_only: true },  // pin bits
+                    ],
+                ]
+                .concat(),
             );
-            let group = |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4]| {
-                kernel.bind_group(
-                    &label,
-                    &[&state.params, &state.spheres, x_in, v_in, x_out, v_out, &state.max_penetration, &rk4_scratch],
-                )
-            };
+            // The packed bindings 8-12: (x, v.x) in, (v.y, v.z) in, (x, v.x) out, (v.y, v.z) out,
+            // pin bits.
+            let unpacked: [&wgpu::Buffer; 5] =
+                [&placeholders[0], &placeholders[0], &placeholders[1], &placeholders[2], &placeholders[0]];
+            let group_with =
+                |label: String, [x_in, v_in, x_out, v_out]: [&wgpu::Buffer; 4], packed: [&wgpu::Buffer; 5]| {
+                    kernel.bind_group(
+                        &label,
+                        &[
+                            &state.params,
+                            &state.spheres,
+                            x_in,
+                            v_in,
+                            x_out,
+                            v_out,
+                            &state.max_penetration,
+                            &rk4_scratch,
+                            packed[0],
+                            packed[1],
+                            packed[2],
+                            packed[3],
+                            packed[4],
+                        ],
+                    )
+                };
+            let group = |label: String, buffers: [&wgpu::Buffer; 4]| group_with(label, buffers, unpacked);
             let pass = |pipeline: usize, groups: [wgpu::BindGroup; 2]| Pass {
                 pipeline,
                 groups,
@@ -295,6 +369,57 @@ pub(crate) fn plan(
                             [&p[k], &v[k], &p[1 - k], &v[1 - k]],
                         )
                     });
+                    let packed = match &packed_buffers {
+                        Some((xv, pv, pins)) if cloth_core::layout::PackedState::checked_enabled(BACKEND_NAME)? => {
+                            // Packed state m in, 1 - m out; the vec4 bindings the pass does not use
+                            // hold state buffers it does not touch either.
+                            let packed_io = |m: usize| [&xv[m], &pv[m], &xv[1 - m], &pv[1 - m], pins];
+                            let pipeline = |label: &str, packed_in: u32, packed_out: u32| {
+                                kernel.pipeline(
+                                    label,
+                                    &[
+                                        ("STAGE", 0),
+                                        ("BLOCK_WIDTH", block_width),
+                                        ("PACKED_IN", packed_in),
+                                        ("PACKED_OUT", packed_out),
+                                    ],
+                                )
+                            };
+                            let for_k = |label: String, k: usize, packed: [&wgpu::Buffer; 5]| {
+                                group_with(label, [&p[k], &v[k], &p[1 - k], &v[1 - k]], packed)
+                            };
+                            Some(PackedPasses {
+                                pipelines: [
+                                    pipeline("cloth Euler substep pipeline, vec4 -> packed", 0, 1),
+                                    pipeline("cloth Euler substep pipeline, packed -> packed", 1, 1),
+                                    pipeline("cloth Euler substep pipeline, packed -> vec4", 1, 0),
+                                ],
+                                // first writes packed state A (reading nothing packed: B sits in
+                                // the input bindings).
+                                first: [0, 1].map(|k| {
+                                    for_k(format!("cloth packed substep {} -> packed A", name[k]), k, packed_io(1))
+                                }),
+                                middle: [0, 1].map(|m| {
+                                    for_k(
+                                        format!("cloth packed substep packed {} -> packed {}", name[m], name[1 - m]),
+                                        0,
+                                        packed_io(m),
+                                    )
+                                }),
+                                last: [0, 1].map(|k| {
+                                    [0, 1].map(|m| {
+                                        for_k(
+                                            format!("cloth packed substep packed {} -> {}", name[m], name[1 - k]),
+                                            k,
+                                            packed_io(m),
+                                        )
+                                    })
+                                }),
+                                workgroups: blocks,
+                            })
+                        }
+                        _ => None,
+                    };
                     Ok(SubstepPlan {
                         pipelines: vec![
                             kernel.pipeline(
@@ -304,6 +429,7 @@ pub(crate) fn plan(
                         ],
                         passes: vec![pass(0, groups)],
                         tiled: tiled_pass(device, scene, state, Tiling::Auto, cpu)?,
+                        packed,
                     })
                 }
                 Integrator::VelocityVerlet => {
@@ -337,6 +463,7 @@ pub(crate) fn plan(
                         ],
                         passes: vec![pass(0, first), pass(1, second)],
                         tiled: None,
+                        packed: None,
                     })
                 }
                 _ => {
@@ -367,6 +494,7 @@ pub(crate) fn plan(
                             .collect(),
                         passes: (1..=4).map(|n| pass(n as usize - 1, stage(n))).collect(),
                         tiled: None,
+                        packed: None,
                     })
                 }
             }
@@ -445,7 +573,7 @@ pub(crate) fn plan(
                 }
             }
             passes.push(pass(3, vertices, 0));
-            Ok(SubstepPlan { pipelines, passes, tiled: None })
+            Ok(SubstepPlan { pipelines, passes, tiled: None, packed: None })
         }
     }
 }

@@ -277,6 +277,31 @@ impl Simulator for WgpuSimulator {
             });
             let mut bound = None;
             let mut left = substeps;
+            // Semi-implicit Euler without the tiled kernel: the substeps on the packed state,
+            // from the vec4 state `current` to `1 - current` (passes.rs, PackedPasses).
+            if let Some(packed) = &self.plan.packed
+                && self.plan.tiled.is_none()
+                && substeps >= 2
+            {
+                let k = self.current;
+                let (x, y) = packed.workgroups;
+                let [first, middle, last] = &packed.pipelines;
+                pass.set_pipeline(first);
+                pass.set_bind_group(0, &packed.first[k], &[]);
+                pass.dispatch_workgroups(x, y, 1);
+                pass.set_pipeline(middle);
+                let mut m = 0;
+                for _ in 0..substeps - 2 {
+                    pass.set_bind_group(0, &packed.middle[m], &[]);
+                    pass.dispatch_workgroups(x, y, 1);
+                    m = 1 - m;
+                }
+                pass.set_pipeline(last);
+                pass.set_bind_group(0, &packed.last[k][m], &[]);
+                pass.dispatch_workgroups(x, y, 1);
+                self.current = 1 - k;
+                left = 0;
+            }
             while left > 0 {
                 // Several substeps in one tiled dispatch where they fit, the rest one at a time.
                 if let Some(tiled) = &self.plan.tiled
