@@ -214,7 +214,8 @@ impl Kernel {
         )
         .map_err(|e| device_error(format!("compute pipeline: {e}")))?;
         if crate::statistics::wanted() {
-            // The constants name the kernel: 101 the stage, 102-106 a tile, 107 the block width.
+            // The constants name the kernel: 101 the stage, 102-106 a tile, 107 the block width,
+            // 108-109 whether it reads and writes the packed state.
             let named: Vec<(u32, u32)> = constants
                 .iter()
                 .filter_map(|(id, c)| match c {
