@@ -434,7 +434,7 @@ fn scene_start(scene: &Scene) -> ClothState {
 
 /// The GPU backends choose the tiled kernel as `Tiling` says: by default on a GPU for a small grid
 /// (not on a CPU implementation, where it is slower), whenever asked to where the device can run
-/// it, never for the other integrators.
+/// it, never for the other integrators; untiled, semi-implicit Euler runs on the packed state.
 #[test]
 fn gpu_backends_fuse_euler_substeps_as_asked() {
     let _gpu = cloth_conformance::gpu_lock();
@@ -450,10 +450,18 @@ fn gpu_backends_fuse_euler_substeps_as_asked() {
             // Every device we run on (lavapipe: 32 KiB of workgroup memory) fits a default tile.
             assert!(sim.set_tiling(Tiling::On).unwrap() > 1, "{}: Euler runs untiled when asked to tile", backend.name);
         }
+        if sim.fused_substeps() > 1 {
+            assert_eq!(sim.substep_state_bytes(), Some(32), "{}: the tiled kernel's state", backend.name);
+        }
         assert_eq!(sim.set_tiling(Tiling::Off).unwrap(), 1, "{}: tiling off", backend.name);
+        // Untiled, Euler's substeps pass each other the packed state, unless the knob says not to.
+        let packed = std::env::var("CLOTH_PACKED_STATE").map_or(true, |v| v.trim() != "0");
+        let expected = if packed { 24 } else { 32 };
+        assert_eq!(sim.substep_state_bytes(), Some(expected), "{}: untiled Euler's state", backend.name);
         scene.integrator = cloth_core::Integrator::VelocityVerlet;
         let Some(mut sim) = create(backend, &scene) else { return };
         assert_eq!(sim.set_tiling(Tiling::On).unwrap(), 1, "{}: Verlet's substeps per dispatch", backend.name);
+        assert_eq!(sim.substep_state_bytes(), Some(32), "{}: Verlet's state", backend.name);
     }
 }
 

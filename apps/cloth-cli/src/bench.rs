@@ -126,11 +126,12 @@ pub fn run(args: BenchArgs) -> Result<()> {
         None
     };
     println!(
-        "{:<8} {:>6} {:>9} {:>5} {:>10} {:>10} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
+        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10} {:>10} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
         "backend",
         "grid",
         "substeps",
         "fused",
+        "state",
         "dt (s)",
         "GPU ms/f",
         "CPU ms/f",
@@ -173,11 +174,12 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 };
                 bar.suspend(|| {
                     println!(
-                        "{:<8} {:>6} {:>9} {:>5} {:>10.3e} {:>10} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
+                        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
                         row.backend,
                         format!("{n}²"),
                         row.substeps,
                         row.fused_substeps,
+                        row.state_bytes.map_or("-".to_string(), |b| format!("{b} B")),
                         row.substep_dt,
                         gpu,
                         row.cpu_ms_per_frame,
@@ -200,7 +202,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
         println!("adapter: {a}");
     }
     println!(
-        "fused: substeps per dispatch (the tiled Euler kernel fuses several); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
+        "fused: substeps per dispatch (the tiled Euler kernel fuses several); state: bytes a vertex the substeps hand each \
+         other (24: semi-implicit Euler's packed state, 32: two vec4s); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
          of the work; Gvs/s: 1e9 vertex-substeps per second (from the GPU time where there is one); ceiling: that \
          throughput times {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes over the copy bandwidth; sub/w: submissions and host \
          waits per frame (the wait that ends the measurement included)."
@@ -210,11 +213,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let mut csv = String::from(
             "backend,adapter,grid,step_rule,substeps,substep_dt_s,frames,gpu_ms_per_frame,cpu_ms_per_frame,\
              wall_ms_per_frame,vertex_substeps_per_s,ceiling_fraction,copy_bandwidth_bytes_per_s,\
-             submissions_per_frame,host_waits_per_frame,finite,fused_substeps\n",
+             submissions_per_frame,host_waits_per_frame,finite,fused_substeps,state_bytes_per_vertex\n",
         );
         for r in &rows {
             csv += &format!(
-                "{},\"{}\",{},{},{},{:.6e},{},{},{:.6},{:.6},{:.6e},{},{},{:.3},{:.3},{},{}\n",
+                "{},\"{}\",{},{},{},{:.6e},{},{},{:.6},{:.6},{:.6e},{},{},{:.3},{:.3},{},{},{}\n",
                 r.backend,
                 r.adapter.replace('"', "'"),
                 r.grid,
@@ -234,7 +237,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 r.submissions_per_frame,
                 r.host_waits_per_frame,
                 r.finite,
-                r.fused_substeps
+                r.fused_substeps,
+                r.state_bytes.map_or(String::new(), |b| b.to_string())
             );
         }
         std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;

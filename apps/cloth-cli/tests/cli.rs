@@ -238,6 +238,14 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
             // Tiles on a GPU; not on the CPU reference or a CPU implementation of Vulkan.
             let fused = if gpu && !r[column("adapter")].contains("Cpu") { "2" } else { "1" };
             assert_eq!(r[column("fused_substeps")], fused, "{r:?}");
+            // Untiled, the GPU backends run Euler on its packed state (24 bytes a vertex).
+            let packed = std::env::var("CLOTH_PACKED_STATE").map_or(true, |v| v.trim() != "0");
+            let state = match (gpu, fused, packed) {
+                (false, _, _) => "",
+                (true, "1", true) => "24",
+                _ => "32",
+            };
+            assert_eq!(r[column("state_bytes_per_vertex")], state, "{r:?}");
         }
         if gpu {
             assert_eq!(r[column("submissions_per_frame")], "1.000", "{r:?}");

@@ -586,16 +586,18 @@ impl eframe::App for InspectorApp {
             ctx.request_repaint();
         }
         let current = self.state.backend.clone();
-        // The adapter, and how many substeps each dispatch advances where the backend fuses them.
+        // The adapter, and how many substeps each dispatch advances where the backend fuses them,
+        // or that it runs them on the packed state.
         let adapter = self
             .runtime
             .sim
             .as_mut()
             .map(|s| {
                 let sim = s.get();
-                match sim.fused_substeps() {
-                    1 => sim.adapter_name(),
-                    n => format!("{} · tiled kernel, {n} substeps per dispatch", sim.adapter_name()),
+                match (sim.fused_substeps(), sim.substep_state_bytes()) {
+                    (1, Some(24)) => format!("{} · packed state, 24 bytes a vertex", sim.adapter_name()),
+                    (1, _) => sim.adapter_name(),
+                    (n, _) => format!("{} · tiled kernel, {n} substeps per dispatch", sim.adapter_name()),
                 }
             })
             .unwrap_or_default();

@@ -112,6 +112,10 @@ pub struct ThroughputRow {
     /// Substeps one dispatch advanced ([`cloth_core::Simulator::fused_substeps`]: more than 1
     /// where the backend fuses them with its tiled kernel).
     pub fused_substeps: u32,
+    /// Bytes a vertex of the state the substeps handed each other
+    /// ([`cloth_core::Simulator::substep_state_bytes`]: 24 on semi-implicit Euler's packed
+    /// state, 32 on the two `vec4`s, `None` on the CPU).
+    pub state_bytes: Option<u32>,
     /// Whether the state was still finite at the end (a fixed step too long for a fine grid
     /// blows up; its timing is still the kernel's, but the row says so).
     pub finite: bool,
@@ -183,6 +187,7 @@ pub fn measure(
         submissions_per_frame: submissions as f64 / f,
         host_waits_per_frame: waits as f64 / f,
         fused_substeps: sim.fused_substeps(),
+        state_bytes: sim.substep_state_bytes(),
         finite,
     })
 }

@@ -118,6 +118,13 @@ pub trait Simulator {
         1
     }
 
+    /// Bytes a vertex of the state the substeps hand each other through device memory: 32 for
+    /// the two `vec4`s (position, velocity), 24 where semi-implicit Euler runs on its packed
+    /// state ([`crate::layout::PackedState`]); `None` on the CPU backends.
+    fn substep_state_bytes(&self) -> Option<u32> {
+        None
+    }
+
     /// Chooses whether semi-implicit Euler fuses substeps with the tiled kernel
     /// ([`crate::tiling::Tiling`]; a new simulator starts at `Auto`). Returns the substeps per
     /// dispatch from now on: 1 where nothing is fused (other integrators, the CPU, a device that

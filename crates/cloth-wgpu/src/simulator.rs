@@ -243,6 +243,12 @@ impl Simulator for WgpuSimulator {
         self.plan.tiled.as_ref().map_or(1, |tiled| tiled.substeps)
     }
 
+    fn substep_state_bytes(&self) -> Option<u32> {
+        // The packed passes run where the tiled kernel does not (record_and_submit).
+        let packed = self.plan.packed.is_some() && self.plan.tiled.is_none();
+        Some(if packed { cloth_core::layout::PackedState::VERTEX_BYTES as u32 } else { 32 })
+    }
+
     fn set_tiling(&mut self, tiling: cloth_core::tiling::Tiling) -> Result<u32, SimError> {
         let cpu = self.context.device_type == wgpu::DeviceType::Cpu;
         let device = &self.context.device;
