@@ -75,6 +75,8 @@ impl VulkanoSimulator {
     pub fn on_context(scene: &Scene, context: VulkanContext) -> Result<Self, SimError> {
         scene.validate()?;
         cloth_core::layout::checked_workgroup_size(BACKEND_NAME)?;
+        // The packed-state knob too, whatever the integrator (only Euler uses it).
+        cloth_core::layout::PackedState::checked_enabled(BACKEND_NAME)?;
         let device = context.device.clone();
         let properties = device.physical_device().properties();
         let limit = properties.max_storage_buffer_range as u64;

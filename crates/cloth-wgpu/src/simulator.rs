@@ -59,6 +59,8 @@ impl WgpuSimulator {
         scene.validate()?;
         check_limits(scene, &context.device.limits())?;
         cloth_core::layout::checked_workgroup_size(BACKEND_NAME)?;
+        // The packed-state knob too, whatever the integrator (only Euler uses it).
+        cloth_core::layout::PackedState::checked_enabled(BACKEND_NAME)?;
         let model = ClothModel::new(scene);
         let data = GpuBuffers::new(&model);
         let device = &context.device;
