@@ -20,7 +20,7 @@ use crate::Backend;
 pub const MIN_BYTES_PER_VERTEX_SUBSTEP: f64 = 64.0;
 
 /// Bytes per vertex a substep on semi-implicit Euler's packed state moves: 24 read, 24 written.
-pub const PACKED_BYTES_PER_VERTEX_SUBSTEP: f64 = 48.0;
+pub const PACKED_BYTES_PER_VERTEX_SUBSTEP: f64 = 2.0 * cloth_core::layout::PackedState::VERTEX_BYTES as f64;
 
 /// The resolution-scaled step is `dt = SCALED_STEP_TIMES_N / n` s on an `n × n` grid: with the
 /// cloth's size and total mass fixed, a vertex's mass goes as `1/n²` and the stable step as `1/n`.

@@ -221,8 +221,11 @@ impl GpuSimParams {
 pub struct PackedState;
 
 impl PackedState {
-    /// Bytes a vertex takes in the packed state (against 32 in the two `vec4`s).
+    /// Bytes a vertex takes in the packed state (against [`PackedState::VEC4_VERTEX_BYTES`]).
     pub const VERTEX_BYTES: u64 = 24;
+
+    /// Bytes a vertex takes in the state the read-backs see: two `vec4`s.
+    pub const VEC4_VERTEX_BYTES: u64 = 32;
 
     /// Sizes in bytes of the two buffers of one packed state for `vertices` vertices:
     /// `(x, v.x)`, 16 bytes a vertex, and `(v.y, v.z)`, 8 bytes a vertex and one more element

@@ -214,8 +214,7 @@ impl VulkanoSimulator {
         let mut left = substeps;
         // Semi-implicit Euler without the tiled kernel: the substeps on the packed state, from
         // the vec4 state `current` to `1 - current` (passes.rs, PackedPasses).
-        if let Some(packed) = &self.plan.packed
-            && self.plan.tiled.is_none()
+        if let Some(packed) = self.plan.active_packed()
             && substeps >= 2
         {
             let k = self.current;
@@ -457,9 +456,7 @@ impl Simulator for VulkanoSimulator {
     }
 
     fn substep_state_bytes(&self) -> Option<u32> {
-        // The packed passes run where the tiled kernel does not (record_and_submit).
-        let packed = self.plan.packed.is_some() && self.plan.tiled.is_none();
-        Some(if packed { cloth_core::layout::PackedState::VERTEX_BYTES as u32 } else { 32 })
+        Some(self.plan.state_bytes())
     }
 
     fn set_tiling(&mut self, tiling: cloth_core::tiling::Tiling) -> Result<u32, SimError> {

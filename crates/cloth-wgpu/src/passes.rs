@@ -63,6 +63,21 @@ pub(crate) struct SubstepPlan {
     pub packed: Option<PackedPasses>,
 }
 
+impl SubstepPlan {
+    /// The packed passes, where they run: only where the tiled kernel does not.
+    pub fn active_packed(&self) -> Option<&PackedPasses> {
+        self.packed.as_ref().filter(|_| self.tiled.is_none())
+    }
+
+    /// Bytes a vertex of the state the substeps hand each other (`Simulator::substep_state_bytes`).
+    pub fn state_bytes(&self) -> u32 {
+        use cloth_core::layout::PackedState;
+        let bytes =
+            if self.active_packed().is_some() { PackedState::VERTEX_BYTES } else { PackedState::VEC4_VERTEX_BYTES };
+        bytes as u32
+    }
+}
+
 /// Semi-implicit Euler's substeps on its packed state (`cloth_core::layout::PackedState`): a
 /// submission of `n ≥ 2` substeps runs `first` (the `vec4` state `k` → packed state 0), `n − 2`
 /// times `middle` (packed `m` → packed `1 − m`) and `last` (packed `m` → the `vec4` state
