@@ -17,6 +17,10 @@
 #                CLOTH_TILE, CLOTH_WORKGROUP_SIZE, CLOTH_BLOCK_WIDTH; SWEEP overrides the list):
 #                128² x 53, 1024² and 2048² x 64 on both backends, one CSV ($OUT/sweep.csv, a
 #                `config` column first)
+#   knobs        the same bench under several settings of the environment knobs, one after another
+#                in one run (KNOBS: space-separated entries, each `base` or comma-separated
+#                NAME=VALUE pairs, e.g. "base CLOTH_ROWS_PER_INVOCATION=2 base"; KNOB_GRIDS,
+#                KNOB_SUBSTEPS): one CSV ($OUT/knobs.csv, a `knobs` column first)
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"
@@ -77,5 +81,20 @@ if [[ " $checks " == *" sweep "* ]]; then
     grep -E "^(wgpu|vulkano) " /tmp/sweep.txt | sed "s/^/$c /" | tee -a "$OUT/sweep.txt"
     if [ ! -s "$OUT/sweep.csv" ]; then sed -n 1p /tmp/sweep.csv | sed 's/^/config,/' > "$OUT/sweep.csv"; fi
     sed 1d /tmp/sweep.csv | sed "s/^/$c,/" >> "$OUT/sweep.csv"
+  done
+fi
+if [[ " $checks " == *" knobs "* ]]; then
+  echo "== knobs: the bench under each setting"
+  : > "$OUT/knobs.csv"
+  for c in ${KNOBS:-base}; do
+    settings=()
+    [ "$c" != base ] && IFS=, read -r -a settings <<< "$c"
+    env "${settings[@]}" CLOTH_PIPELINE_STATS=${KNOB_STATS:-0} devbin/cloth bench --backends wgpu,vulkano \
+      --grids ${KNOB_GRIDS:-512,1024,2048} --substeps ${KNOB_SUBSTEPS:-64} --frames ${KNOB_FRAMES:-20} \
+      --csv /tmp/knobs.csv > /tmp/knobs.txt 2>&1
+    grep -E "refused|error|pipeline statistics" /tmp/knobs.txt | sort -u | head -16 | sed "s/^/$c /"
+    grep -E "^(wgpu|vulkano) " /tmp/knobs.txt | sed "s/^/$c /" | tee -a "$OUT/knobs.txt"
+    if [ ! -s "$OUT/knobs.csv" ]; then sed -n 1p /tmp/knobs.csv | sed 's/^/knobs,/' > "$OUT/knobs.csv"; fi
+    sed 1d /tmp/knobs.csv | sed "s/^/$c,/" >> "$OUT/knobs.csv"
   done
 fi

@@ -647,10 +647,70 @@ fn block_width_from(explicit: Option<&str>, threads: u32) -> Result<u32, String>
 /// one per vertex, or with `block_width` > 0 whole `block_width × (threads / block_width)`
 /// blocks covering the grid (the kernels skip the invocations past its edges).
 pub fn block_invocations(nx: u32, ny: u32, block_width: u32, threads: u32) -> u32 {
+    block_invocations_by_rows(nx, ny, block_width, threads, 1)
+}
+
+/// [`block_invocations`] where each invocation updates `rows` vertices of a column
+/// ([`rows_per_invocation`]; with `block_width` > 0).
+pub fn block_invocations_by_rows(nx: u32, ny: u32, block_width: u32, threads: u32, rows: u32) -> u32 {
     if block_width == 0 {
         return nx * ny;
     }
-    nx.div_ceil(block_width) * ny.div_ceil(threads / block_width) * threads
+    nx.div_ceil(block_width) * ny.div_ceil(threads / block_width * rows.max(1)) * threads
+}
+
+/// Rows of the grid each invocation of semi-implicit Euler's packed passes updates, unless
+/// `CLOTH_ROWS_PER_INVOCATION` says otherwise: 2, two vertices of a column, whose stencils share
+/// 14 of their neighbours, so a pair reads 18 vertices instead of 26 (`cloth_step.wgsl` /
+/// `.comp`, `ROWS_PER_INVOCATION`); only where the workgroups update blocks
+/// ([`grid_block_width`] > 0).
+pub const DEFAULT_ROWS_PER_INVOCATION: u32 = 1;
+
+/// [`DEFAULT_ROWS_PER_INVOCATION`], or the value of `CLOTH_ROWS_PER_INVOCATION` (1 or 2; a tuning
+/// knob for benchmarks).
+///
+/// # Errors
+/// The variable and its value when it is neither 1 nor 2.
+pub fn rows_per_invocation() -> Result<u32, String> {
+    match std::env::var("CLOTH_ROWS_PER_INVOCATION") {
+        Ok(text) if !text.trim().is_empty() => match text.trim() {
+            "1" => Ok(1),
+            "2" => Ok(2),
+            _ => Err(format!("CLOTH_ROWS_PER_INVOCATION={text} (1 or 2)")),
+        },
+        _ => Ok(DEFAULT_ROWS_PER_INVOCATION),
+    }
+}
+
+/// Whether the packed passes alternate the order in which their workgroups take the grid's
+/// blocks (forward, then backward, ...), so each substep starts on the blocks the one before
+/// wrote last: `CLOTH_ALTERNATE_ORDER` = 1 (a tuning knob; off by default).
+///
+/// # Errors
+/// The variable and its value when it is neither 0 nor 1.
+pub fn alternate_order() -> Result<bool, String> {
+    flag("CLOTH_ALTERNATE_ORDER", false)
+}
+
+/// Whether the kernels read the deepest penetration so far before they raise it with an atomic
+/// maximum: `CLOTH_PENETRATION_FILTER` = 1 (a tuning knob; off by default).
+///
+/// # Errors
+/// The variable and its value when it is neither 0 nor 1.
+pub fn penetration_filter() -> Result<bool, String> {
+    flag("CLOTH_PENETRATION_FILTER", false)
+}
+
+/// The environment variable `name` as 0 or 1, `default` when unset.
+fn flag(name: &str, default: bool) -> Result<bool, String> {
+    match std::env::var(name) {
+        Ok(text) if !text.trim().is_empty() => match text.trim() {
+            "0" => Ok(false),
+            "1" => Ok(true),
+            _ => Err(format!("{name}={text} (0 or 1)")),
+        },
+        _ => Ok(default),
+    }
 }
 
 /// [`workgroup_size`] as the error a GPU backend named `backend` returns when the knob (or
@@ -670,6 +730,14 @@ pub fn checked_workgroup_size(backend: &'static str) -> Result<u32, crate::error
         what,
         fix: format!("unset it for the default, {DEFAULT_BLOCK_WIDTH}"),
     })?;
+    let unset = |what: String| crate::error::SimError::Unsupported {
+        backend,
+        what,
+        fix: "unset it for the default".to_string(),
+    };
+    rows_per_invocation().map_err(unset)?;
+    alternate_order().map_err(unset)?;
+    penetration_filter().map_err(unset)?;
     Ok(size)
 }
 

@@ -232,14 +232,15 @@ impl VulkanoSimulator {
                 }
                 frame.between_dispatches().map_err(device_error)
             };
-            let [first, middle, last] = &packed.pipelines;
-            dispatch(first, &packed.first[k])?;
+            // Substep s takes the blocks backward when s is odd (the same pipeline both ways
+            // unless the order alternates).
+            dispatch(&packed.first_pipeline, &packed.first[k])?;
             let mut m = 0;
-            for _ in 0..substeps - 2 {
-                dispatch(middle, &packed.middle[m])?;
+            for s in 1..substeps - 1 {
+                dispatch(&packed.middle_pipelines[(s % 2) as usize], &packed.middle[m])?;
                 m = 1 - m;
             }
-            dispatch(last, &packed.last[k][m])?;
+            dispatch(&packed.last_pipelines[((substeps - 1) % 2) as usize], &packed.last[k][m])?;
             self.current = 1 - k;
             left = 0;
         }

@@ -290,18 +290,25 @@ impl Simulator for WgpuSimulator {
             {
                 let k = self.current;
                 let (x, y) = packed.workgroups;
-                let [first, middle, last] = &packed.pipelines;
-                pass.set_pipeline(first);
+                pass.set_pipeline(&packed.first_pipeline);
                 pass.set_bind_group(0, &packed.first[k], &[]);
                 pass.dispatch_workgroups(x, y, 1);
-                pass.set_pipeline(middle);
+                // Substep s takes the blocks backward when s is odd (the same pipeline both ways
+                // unless the order alternates: then set once).
+                let alternate = packed.middle_pipelines[0] != packed.middle_pipelines[1];
+                if !alternate {
+                    pass.set_pipeline(&packed.middle_pipelines[0]);
+                }
                 let mut m = 0;
-                for _ in 0..substeps - 2 {
+                for s in 1..substeps - 1 {
+                    if alternate {
+                        pass.set_pipeline(&packed.middle_pipelines[(s % 2) as usize]);
+                    }
                     pass.set_bind_group(0, &packed.middle[m], &[]);
                     pass.dispatch_workgroups(x, y, 1);
                     m = 1 - m;
                 }
-                pass.set_pipeline(last);
+                pass.set_pipeline(&packed.last_pipelines[((substeps - 1) % 2) as usize]);
                 pass.set_bind_group(0, &packed.last[k][m], &[]);
                 pass.dispatch_workgroups(x, y, 1);
                 self.current = 1 - k;
