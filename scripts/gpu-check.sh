@@ -95,6 +95,6 @@ if [[ " $checks " == *" knobs "* ]]; then
     grep -E "refused|error|pipeline statistics" /tmp/knobs.txt | sort -u | head -16 | sed "s/^/$c /"
     grep -E "^(wgpu|vulkano) " /tmp/knobs.txt | sed "s/^/$c /" | tee -a "$OUT/knobs.txt"
     if [ ! -s "$OUT/knobs.csv" ]; then sed -n 1p /tmp/knobs.csv | sed 's/^/knobs,/' > "$OUT/knobs.csv"; fi
-    sed 1d /tmp/knobs.csv | sed "s/^/$c,/" >> "$OUT/knobs.csv"
+    sed 1d /tmp/knobs.csv | sed "s/^/\"$c\",/" >> "$OUT/knobs.csv"
   done
 fi

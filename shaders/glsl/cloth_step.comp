@@ -1,6 +1,5 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-#extension GL_KHR_memory_scope_semantics : require
 
 // One substep of the mass-spring cloth under a force-based integrator (semi-implicit Euler,
 // velocity Verlet): one invocation per vertex. Effects the scene leaves out are compiled out
@@ -73,17 +72,6 @@ void state_in(uint index, out vec3 x, out vec3 v) {
 
 #include "grid.glsl"
 
-// Adds to `force` the spring of kind `kind` (0 structural, 1 shear, 2 bend) from a vertex at
-// (x, v) to one at (x_other, v_other): Hooke plus damping, with the kind's k and c_d and the given
-// rest length, m.
-void add_kind_spring(inout vec3 force, vec3 x, vec3 v, vec3 x_other, vec3 v_other, uint kind, float rest_length) {
-    float damping = 0.0;
-    if (EFFECT_SPRING_DAMPING) {
-        damping = params.damping[kind];
-    }
-    add_spring_force(force, x, x_other, v, v_other, rest_length, params.stiffness[kind], damping);
-}
-
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
 // (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
 // the given rest length. `interior`: (i, j) is two or more vertices from every edge, so every
@@ -100,10 +88,14 @@ void add_spring(inout vec3 force, int i, int j, uint index, bool interior, int d
         }
         other = uint(nj) * params.grid_nx + uint(ni);
     }
+    float damping = 0.0;
+    if (EFFECT_SPRING_DAMPING) {
+        damping = params.damping[kind];
+    }
     vec3 x_other;
     vec3 v_other;
     state_in(other, x_other, v_other);
-    add_kind_spring(force, x, v, x_other, v_other, kind, rest_length);
+    add_spring_force(force, x, x_other, v, v_other, rest_length, params.stiffness[kind], damping);
 }
 
 // The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the
@@ -135,92 +127,15 @@ void add_stencil_springs(inout vec3 force, int i, int j, uint index, vec3 x, vec
     }
 }
 
-// A vertex's position (m) and velocity (m/s) in the state read.
-struct VertexState {
-    vec3 x;
-    vec3 v;
-};
-
-// The state of the vertex `dj` rows and `di` columns from vertex `index`.
-VertexState state_at(uint index, int di, int dj) {
-    VertexState s;
-    state_in(uint(int(index) + dj * int(params.grid_nx) + di), s.x, s.v);
-    return s;
-}
-
-// add_stencil_springs for two vertices of one column at once, a = (i, j) and b = (i, j + 1), both
-// two or more vertices from every edge (ROWS_PER_INVOCATION = 2): their stencils share 14 of
-// their neighbours, so the pair reads 18 vertices instead of 26. Each vertex's springs are added
-// in add_stencil_springs' order, with the same arithmetic, so the sums are the same to the bit.
-void add_pair_stencil_springs(inout vec3 force_a, inout vec3 force_b, uint a, VertexState sa, VertexState sb) {
-    // The neighbours, named by their offset from a: n<di><dj>, m for minus, p for plus.
-    VertexState n0m2 = state_at(a, 0, -2);
-    VertexState nm1m1 = state_at(a, -1, -1);
-    VertexState n0m1 = state_at(a, 0, -1);
-    VertexState np1m1 = state_at(a, 1, -1);
-    VertexState nm20 = state_at(a, -2, 0);
-    VertexState nm10 = state_at(a, -1, 0);
-    VertexState np10 = state_at(a, 1, 0);
-    VertexState np20 = state_at(a, 2, 0);
-    VertexState nm2p1 = state_at(a, -2, 1);
-    VertexState nm1p1 = state_at(a, -1, 1);
-    VertexState np1p1 = state_at(a, 1, 1);
-    VertexState np2p1 = state_at(a, 2, 1);
-    VertexState nm1p2 = state_at(a, -1, 2);
-    VertexState n0p2 = state_at(a, 0, 2);
-    VertexState np1p2 = state_at(a, 1, 2);
-    VertexState n0p3 = state_at(a, 0, 3);
-    vec4 rest = params.rest_lengths;
-    if (EFFECT_STRUCTURAL) {
-        add_kind_spring(force_a, sa.x, sa.v, n0m1.x, n0m1.v, 0u, rest.y);
-        add_kind_spring(force_a, sa.x, sa.v, nm10.x, nm10.v, 0u, rest.x);
-        add_kind_spring(force_a, sa.x, sa.v, np10.x, np10.v, 0u, rest.x);
-        add_kind_spring(force_a, sa.x, sa.v, sb.x, sb.v, 0u, rest.y);
-        add_kind_spring(force_b, sb.x, sb.v, sa.x, sa.v, 0u, rest.y);
-        add_kind_spring(force_b, sb.x, sb.v, nm1p1.x, nm1p1.v, 0u, rest.x);
-        add_kind_spring(force_b, sb.x, sb.v, np1p1.x, np1p1.v, 0u, rest.x);
-        add_kind_spring(force_b, sb.x, sb.v, n0p2.x, n0p2.v, 0u, rest.y);
-    }
-    if (EFFECT_SHEAR) {
-        add_kind_spring(force_a, sa.x, sa.v, nm1m1.x, nm1m1.v, 1u, rest.z);
-        add_kind_spring(force_a, sa.x, sa.v, np1m1.x, np1m1.v, 1u, rest.z);
-        add_kind_spring(force_a, sa.x, sa.v, np1p1.x, np1p1.v, 1u, rest.z);
-        add_kind_spring(force_a, sa.x, sa.v, nm1p1.x, nm1p1.v, 1u, rest.z);
-        add_kind_spring(force_b, sb.x, sb.v, nm10.x, nm10.v, 1u, rest.z);
-        add_kind_spring(force_b, sb.x, sb.v, np10.x, np10.v, 1u, rest.z);
-        add_kind_spring(force_b, sb.x, sb.v, np1p2.x, np1p2.v, 1u, rest.z);
-        add_kind_spring(force_b, sb.x, sb.v, nm1p2.x, nm1p2.v, 1u, rest.z);
-    }
-    if (EFFECT_BEND) {
-        add_kind_spring(force_a, sa.x, sa.v, n0m2.x, n0m2.v, 2u, 2.0 * rest.y);
-        add_kind_spring(force_a, sa.x, sa.v, nm20.x, nm20.v, 2u, 2.0 * rest.x);
-        add_kind_spring(force_a, sa.x, sa.v, np20.x, np20.v, 2u, 2.0 * rest.x);
-        add_kind_spring(force_a, sa.x, sa.v, n0p2.x, n0p2.v, 2u, 2.0 * rest.y);
-        add_kind_spring(force_b, sb.x, sb.v, n0m1.x, n0m1.v, 2u, 2.0 * rest.y);
-        add_kind_spring(force_b, sb.x, sb.v, nm2p1.x, nm2p1.v, 2u, 2.0 * rest.x);
-        add_kind_spring(force_b, sb.x, sb.v, np2p1.x, np2p1.v, 2u, 2.0 * rest.x);
-        add_kind_spring(force_b, sb.x, sb.v, n0p3.x, n0p3.v, 2u, 2.0 * rest.y);
-    }
-}
-
 // Vertices along i of the block of the grid one workgroup updates (cloth_core::layout::
 // block_width): a workgroup updates BLOCK_WIDTH × (workgroup size / BLOCK_WIDTH) vertices, so
 // the rows its springs reach are mostly its own (L1 hits). 0: a workgroup's worth of a row.
 layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
-
-// Rows of the grid one invocation updates (cloth_core::layout::rows_per_invocation; with
-// BLOCK_WIDTH != 0 only): 1, or 2, two vertices of a column, whose stencils share most of their
-// neighbours (add_pair_stencil_springs).
-layout(constant_id = 110) const uint ROWS_PER_INVOCATION = 1u;
-// 1: the workgroups take the grid's blocks in reverse order (the last first), so a substep
-// starts on the blocks the previous one wrote last, which the L2 cache still holds
-// (cloth_core::layout, the alternating order; BLOCK_WIDTH != 0 only).
-layout(constant_id = 111) const uint REVERSED_ORDER = 0u;
-// 1: the deepest penetration is read before the atomicMax, which only a deeper one then does
-// (experiment).
-layout(constant_id = 112) const uint PENETRATION_FILTER = 0u;
-
-void update_vertex(uint i, uint vi, uint vj, vec3 x, vec3 v, bool springs_given, vec3 given_force);
+// 1: the workgroups take the grid's blocks last first (BLOCK_WIDTH != 0 only). Semi-implicit
+// Euler's packed passes alternate the order from substep to substep
+// (cloth_core::layout::alternates_order), so each substep starts on the blocks the one before
+// wrote last, which the L2 cache still holds.
+layout(constant_id = 110) const uint REVERSED_ORDER = 0u;
 
 void main() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
@@ -232,11 +147,10 @@ void main() {
         // (max: not a specialization-constant operation, so vulkano does not fold a quotient by
         // zero when it specializes a pipeline with BLOCK_WIDTH = 0.)
         uint width = max(BLOCK_WIDTH, 1u);
-        uint rows = max(ROWS_PER_INVOCATION, 1u);
-        uint block_rows = (gl_WorkGroupSize.x / width) * rows;
         uint block = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
         uint blocks_along_i = (params.grid_nx + width - 1u) / width;
         if (REVERSED_ORDER != 0u) {
+            uint block_rows = gl_WorkGroupSize.x / width;
             uint blocks = blocks_along_i * ((params.grid_ny + block_rows - 1u) / block_rows);
             if (block >= blocks) {
                 return;
@@ -245,37 +159,11 @@ void main() {
         }
         uint local_index = gl_LocalInvocationIndex;
         vi = (block % blocks_along_i) * width + local_index % width;
-        vj = (block / blocks_along_i) * block_rows + (local_index / width) * rows;
+        vj = (block / blocks_along_i) * (gl_WorkGroupSize.x / width) + local_index / width;
         if (vi >= params.grid_nx || vj >= params.grid_ny) {
             return;
         }
         i = vj * params.grid_nx + vi;
-        if (rows == 2u) {
-            VertexState a;
-            state_in(i, a.x, a.v);
-            if (vj + 1u >= params.grid_ny) {
-                update_vertex(i, vi, vj, a.x, a.v, false, vec3(0.0));
-                return;
-            }
-            uint b_index = i + params.grid_nx;
-            VertexState b;
-            state_in(b_index, b.x, b.v);
-            bool interior = vi >= 2u && vj >= 2u && vi + 2u < params.grid_nx && vj + 3u < params.grid_ny;
-            if (ANY_SPRINGS && interior) {
-                vec3 force_a = vec3(0.0);
-                if (EFFECT_GRAVITY) {
-                    force_a += gravity_force(params.vertex_mass, params.gravity.xyz);
-                }
-                vec3 force_b = force_a;
-                add_pair_stencil_springs(force_a, force_b, i, a, b);
-                update_vertex(i, vi, vj, a.x, a.v, true, force_a);
-                update_vertex(b_index, vi, vj + 1u, b.x, b.v, true, force_b);
-            } else {
-                update_vertex(i, vi, vj, a.x, a.v, false, vec3(0.0));
-                update_vertex(b_index, vi, vj + 1u, b.x, b.v, false, vec3(0.0));
-            }
-            return;
-        }
     }
     if (i >= params.vertex_count) {
         return;
@@ -283,13 +171,6 @@ void main() {
     vec3 x;
     vec3 v;
     state_in(i, x, v);
-    update_vertex(i, vi, vj, x, v, false, vec3(0.0));
-}
-
-// Advances vertex `i` at grid coordinates (vi, vj), whose state read is (x, v), by this
-// pipeline's stage. `springs_given`: `given_force` is its gravity and spring forces, N
-// (add_pair_stencil_springs); else they are computed here.
-void update_vertex(uint i, uint vi, uint vj, vec3 x, vec3 v, bool springs_given, vec3 given_force) {
     // Whether the vertex moves freely (positions.w, or its pin bit), and the time of the state
     // read (velocities.w, or the packed state's clock) and of the state written.
     bool free_vertex;
@@ -325,9 +206,7 @@ void update_vertex(uint i, uint vi, uint vj, vec3 x, vec3 v, bool springs_given,
         if (EFFECT_GRAVITY) {
             force += gravity_force(mass, params.gravity.xyz);
         }
-        if (springs_given) {
-            force = given_force;
-        } else if (ANY_SPRINGS) {
+        if (ANY_SPRINGS) {
             add_stencil_springs(force, int(vi), int(vj), i, x, v);
         }
         if (EFFECT_AIR_DRAG) {
@@ -432,11 +311,7 @@ void update_vertex(uint i, uint vi, uint vj, vec3 x, vec3 v, bool springs_given,
                 deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
             }
             if (deepest > 0.0) {
-                if (PENETRATION_FILTER == 0u
-                    || floatBitsToUint(deepest) > atomicLoad(max_penetration_bits, gl_ScopeDevice,
-                                                             gl_StorageSemanticsBuffer, gl_SemanticsRelaxed)) {
-                    atomicMax(max_penetration_bits, floatBitsToUint(deepest));
-                }
+                atomicMax(max_penetration_bits, floatBitsToUint(deepest));
             }
         }
     }

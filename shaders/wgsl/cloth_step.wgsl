@@ -66,18 +66,6 @@ fn state_in(index: u32) -> VertexState {
     return VertexState(positions_in[index].xyz, velocities_in[index].xyz);
 }
 
-// Adds to `force` the spring of kind `kind` (0 structural, 1 shear, 2 bend) from a vertex in state
-// `own` to one in state `other`: Hooke plus damping, with the kind's k and c_d and the given rest
-// length, m.
-fn add_kind_spring(force: ptr<function, vec3<f32>>, own: VertexState, other: VertexState, kind: u32,
-                   rest_length: f32) {
-    var damping = 0.0;
-    if (EFFECT_SPRING_DAMPING) {
-        damping = params.damping[kind];
-    }
-    add_spring_force(force, own.x, other.x, own.v, other.v, rest_length, params.stiffness[kind], damping);
-}
-
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
 // (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
 // the given rest length. `interior`: (i, j) is two or more vertices from every edge, so every
@@ -94,7 +82,12 @@ fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u32, inter
         }
         other = u32(nj) * params.grid_nx + u32(ni);
     }
-    add_kind_spring(force, VertexState(x, v), state_in(other), kind, rest_length);
+    var damping = 0.0;
+    if (EFFECT_SPRING_DAMPING) {
+        damping = params.damping[kind];
+    }
+    let neighbour = state_in(other);
+    add_spring_force(force, x, neighbour.x, v, neighbour.v, rest_length, params.stiffness[kind], damping);
 }
 
 // The spring forces on vertex `index`, from its grid neighbours: the springs are a stencil of the
@@ -126,83 +119,15 @@ fn add_stencil_springs(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u
     }
 }
 
-// The state of the vertex `dj` rows and `di` columns from vertex `index`.
-fn state_at(index: u32, di: i32, dj: i32) -> VertexState {
-    return state_in(u32(i32(index) + dj * i32(params.grid_nx) + di));
-}
-
-// add_stencil_springs for two vertices of one column at once, a = (i, j) and b = (i, j + 1), both
-// two or more vertices from every edge (ROWS_PER_INVOCATION = 2): their stencils share 14 of
-// their neighbours, so the pair reads 18 vertices instead of 26. Each vertex's springs are added
-// in add_stencil_springs' order, with the same arithmetic, so the sums are the same to the bit.
-fn add_pair_stencil_springs(force_a: ptr<function, vec3<f32>>, force_b: ptr<function, vec3<f32>>, a: u32,
-                            sa: VertexState, sb: VertexState) {
-    // The neighbours, named by their offset from a: n<di><dj>, m for minus, p for plus.
-    let n0m2 = state_at(a, 0, -2);
-    let nm1m1 = state_at(a, -1, -1);
-    let n0m1 = state_at(a, 0, -1);
-    let np1m1 = state_at(a, 1, -1);
-    let nm20 = state_at(a, -2, 0);
-    let nm10 = state_at(a, -1, 0);
-    let np10 = state_at(a, 1, 0);
-    let np20 = state_at(a, 2, 0);
-    let nm2p1 = state_at(a, -2, 1);
-    let nm1p1 = state_at(a, -1, 1);
-    let np1p1 = state_at(a, 1, 1);
-    let np2p1 = state_at(a, 2, 1);
-    let nm1p2 = state_at(a, -1, 2);
-    let n0p2 = state_at(a, 0, 2);
-    let np1p2 = state_at(a, 1, 2);
-    let n0p3 = state_at(a, 0, 3);
-    let rest = params.rest_lengths;
-    if (EFFECT_STRUCTURAL) {
-        add_kind_spring(force_a, sa, n0m1, 0u, rest.y);
-        add_kind_spring(force_a, sa, nm10, 0u, rest.x);
-        add_kind_spring(force_a, sa, np10, 0u, rest.x);
-        add_kind_spring(force_a, sa, sb, 0u, rest.y);
-        add_kind_spring(force_b, sb, sa, 0u, rest.y);
-        add_kind_spring(force_b, sb, nm1p1, 0u, rest.x);
-        add_kind_spring(force_b, sb, np1p1, 0u, rest.x);
-        add_kind_spring(force_b, sb, n0p2, 0u, rest.y);
-    }
-    if (EFFECT_SHEAR) {
-        add_kind_spring(force_a, sa, nm1m1, 1u, rest.z);
-        add_kind_spring(force_a, sa, np1m1, 1u, rest.z);
-        add_kind_spring(force_a, sa, np1p1, 1u, rest.z);
-        add_kind_spring(force_a, sa, nm1p1, 1u, rest.z);
-        add_kind_spring(force_b, sb, nm10, 1u, rest.z);
-        add_kind_spring(force_b, sb, np10, 1u, rest.z);
-        add_kind_spring(force_b, sb, np1p2, 1u, rest.z);
-        add_kind_spring(force_b, sb, nm1p2, 1u, rest.z);
-    }
-    if (EFFECT_BEND) {
-        add_kind_spring(force_a, sa, n0m2, 2u, 2.0 * rest.y);
-        add_kind_spring(force_a, sa, nm20, 2u, 2.0 * rest.x);
-        add_kind_spring(force_a, sa, np20, 2u, 2.0 * rest.x);
-        add_kind_spring(force_a, sa, n0p2, 2u, 2.0 * rest.y);
-        add_kind_spring(force_b, sb, n0m1, 2u, 2.0 * rest.y);
-        add_kind_spring(force_b, sb, nm2p1, 2u, 2.0 * rest.x);
-        add_kind_spring(force_b, sb, np2p1, 2u, 2.0 * rest.x);
-        add_kind_spring(force_b, sb, n0p3, 2u, 2.0 * rest.y);
-    }
-}
-
 // Vertices along i of the block of the grid one workgroup updates (cloth_core::layout::
 // block_width): a workgroup updates BLOCK_WIDTH × (WORKGROUP_SIZE / BLOCK_WIDTH) vertices, so
 // the rows its springs reach are mostly its own (L1 hits). 0: WORKGROUP_SIZE vertices of a row.
 override BLOCK_WIDTH: u32 = 0u;
-
-// Rows of the grid one invocation updates (cloth_core::layout::rows_per_invocation; with
-// BLOCK_WIDTH != 0 only): 1, or 2, two vertices of a column, whose stencils share most of their
-// neighbours (add_pair_stencil_springs).
-override ROWS_PER_INVOCATION: u32 = 1u;
-// 1: the workgroups take the grid's blocks in reverse order (the last first), so a substep
-// starts on the blocks the previous one wrote last, which the L2 cache still holds
-// (cloth_core::layout::alternate_order; BLOCK_WIDTH != 0 only).
+// 1: the workgroups take the grid's blocks last first (BLOCK_WIDTH != 0 only). Semi-implicit
+// Euler's packed passes alternate the order from substep to substep
+// (cloth_core::layout::alternates_order), so each substep starts on the blocks the one before
+// wrote last, which the L2 cache still holds.
 override REVERSED_ORDER: u32 = 0u;
-// 1: the deepest penetration is read before the atomicMax, which only a deeper one then does
-// (cloth_core::layout::penetration_filter).
-override PENETRATION_FILTER: u32 = 0u;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
@@ -215,11 +140,10 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if (BLOCK_WIDTH != 0u) {
         // (max: no constant division by zero where the pipeline has BLOCK_WIDTH = 0.)
         let width = max(BLOCK_WIDTH, 1u);
-        let rows = max(ROWS_PER_INVOCATION, 1u);
-        let block_rows = (WORKGROUP_SIZE / width) * rows;
         var block = group.y * groups.x + group.x;
         let blocks_along_i = (params.grid_nx + width - 1u) / width;
         if (REVERSED_ORDER != 0u) {
+            let block_rows = WORKGROUP_SIZE / width;
             let blocks = blocks_along_i * ((params.grid_ny + block_rows - 1u) / block_rows);
             if (block >= blocks) {
                 return;
@@ -227,46 +151,16 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             block = blocks - 1u - block;
         }
         vi = (block % blocks_along_i) * width + local % width;
-        vj = (block / blocks_along_i) * block_rows + (local / width) * rows;
+        vj = (block / blocks_along_i) * (WORKGROUP_SIZE / width) + local / width;
         if (vi >= params.grid_nx || vj >= params.grid_ny) {
             return;
         }
         i = vj * params.grid_nx + vi;
-        if (rows == 2u) {
-            let a = state_in(i);
-            if (vj + 1u >= params.grid_ny) {
-                update_vertex(i, vi, vj, a, false, vec3<f32>(0.0));
-                return;
-            }
-            let b_index = i + params.grid_nx;
-            let b = state_in(b_index);
-            let interior = vi >= 2u && vj >= 2u && vi + 2u < params.grid_nx && vj + 3u < params.grid_ny;
-            if (ANY_SPRINGS && interior) {
-                var force_a = vec3<f32>(0.0);
-                if (EFFECT_GRAVITY) {
-                    force_a += gravity_force(params.vertex_mass, params.gravity.xyz);
-                }
-                var force_b = force_a;
-                add_pair_stencil_springs(&force_a, &force_b, i, a, b);
-                update_vertex(i, vi, vj, a, true, force_a);
-                update_vertex(b_index, vi, vj + 1u, b, true, force_b);
-            } else {
-                update_vertex(i, vi, vj, a, false, vec3<f32>(0.0));
-                update_vertex(b_index, vi, vj + 1u, b, false, vec3<f32>(0.0));
-            }
-            return;
-        }
     }
     if (i >= params.vertex_count) {
         return;
     }
-    update_vertex(i, vi, vj, state_in(i), false, vec3<f32>(0.0));
-}
-
-// Advances vertex `i` at grid coordinates (vi, vj), whose state read is `own`, by this
-// pipeline's stage. `springs_given`: `given_force` is its gravity and spring forces, N
-// (add_pair_stencil_springs); else they are computed here.
-fn update_vertex(i: u32, vi: u32, vj: u32, own: VertexState, springs_given: bool, given_force: vec3<f32>) {
+    let own = state_in(i);
     let x = own.x;
     let v = own.v;
     // Whether the vertex moves freely (positions.w, or its pin bit), and the time of the state
@@ -309,9 +203,7 @@ fn update_vertex(i: u32, vi: u32, vj: u32, own: VertexState, springs_given: bool
         if (EFFECT_GRAVITY) {
             force += gravity_force(mass, params.gravity.xyz);
         }
-        if (springs_given) {
-            force = given_force;
-        } else if (ANY_SPRINGS) {
+        if (ANY_SPRINGS) {
             add_stencil_springs(&force, i32(vi), i32(vj), i, x, v);
         }
         if (EFFECT_AIR_DRAG) {
@@ -418,9 +310,7 @@ fn update_vertex(i: u32, vi: u32, vj: u32, own: VertexState, springs_given: bool
                 deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
             }
             if (deepest > 0.0) {
-                if (PENETRATION_FILTER == 0u || bitcast<u32>(deepest) > atomicLoad(&max_penetration_bits)) {
-                    atomicMax(&max_penetration_bits, bitcast<u32>(deepest));
-                }
+                atomicMax(&max_penetration_bits, bitcast<u32>(deepest));
             }
         }
     }

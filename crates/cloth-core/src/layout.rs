@@ -647,69 +647,45 @@ fn block_width_from(explicit: Option<&str>, threads: u32) -> Result<u32, String>
 /// one per vertex, or with `block_width` > 0 whole `block_width × (threads / block_width)`
 /// blocks covering the grid (the kernels skip the invocations past its edges).
 pub fn block_invocations(nx: u32, ny: u32, block_width: u32, threads: u32) -> u32 {
-    block_invocations_by_rows(nx, ny, block_width, threads, 1)
-}
-
-/// [`block_invocations`] where each invocation updates `rows` vertices of a column
-/// ([`rows_per_invocation`]; with `block_width` > 0).
-pub fn block_invocations_by_rows(nx: u32, ny: u32, block_width: u32, threads: u32, rows: u32) -> u32 {
     if block_width == 0 {
         return nx * ny;
     }
-    nx.div_ceil(block_width) * ny.div_ceil(threads / block_width * rows.max(1)) * threads
+    nx.div_ceil(block_width) * ny.div_ceil(threads / block_width) * threads
 }
 
-/// Rows of the grid each invocation of semi-implicit Euler's packed passes updates, unless
-/// `CLOTH_ROWS_PER_INVOCATION` says otherwise: 2, two vertices of a column, whose stencils share
-/// 14 of their neighbours, so a pair reads 18 vertices instead of 26 (`cloth_step.wgsl` /
-/// `.comp`, `ROWS_PER_INVOCATION`); only where the workgroups update blocks
-/// ([`grid_block_width`] > 0).
-pub const DEFAULT_ROWS_PER_INVOCATION: u32 = 1;
+/// The most bytes a substep of semi-implicit Euler's packed passes may move (its packed state in
+/// and out, 2 × [`PackedState::VERTEX_BYTES`] a vertex) for the passes to alternate the order in
+/// which their workgroups take the grid's blocks by default ([`alternates_order`]): twice the
+/// H100's 50 MB of L2 cache. Taking the blocks forward, then backward, and so on, each substep
+/// starts on the blocks the one before wrote last: the block written at fraction `f` from the end
+/// of a substep is read again after `2 f` of a substep's traffic instead of after all of it, so
+/// the part of the reads the L2 cache serves grows as the state outgrows the cache. Measured on
+/// the H100 (docs/performance.md): 1024² × 64 substeps (50 MB a substep) −5% (vulkano) and −6%
+/// (wgpu); 2048² (201 MB) at most −1%, and vulkano's 2048² rows ran up to 2.5 times slower with
+/// it on several machines, for a reason not found; 512² (13 MB, in the cache either way) the same.
+pub const ALTERNATE_ORDER_MAX_SUBSTEP_BYTES: u64 = 100_000_000;
 
-/// [`DEFAULT_ROWS_PER_INVOCATION`], or the value of `CLOTH_ROWS_PER_INVOCATION` (1 or 2; a tuning
-/// knob for benchmarks).
-///
-/// # Errors
-/// The variable and its value when it is neither 1 nor 2.
-pub fn rows_per_invocation() -> Result<u32, String> {
-    match std::env::var("CLOTH_ROWS_PER_INVOCATION") {
-        Ok(text) if !text.trim().is_empty() => match text.trim() {
-            "1" => Ok(1),
-            "2" => Ok(2),
-            _ => Err(format!("CLOTH_ROWS_PER_INVOCATION={text} (1 or 2)")),
-        },
-        _ => Ok(DEFAULT_ROWS_PER_INVOCATION),
-    }
-}
-
-/// Whether the packed passes alternate the order in which their workgroups take the grid's
-/// blocks (forward, then backward, ...), so each substep starts on the blocks the one before
-/// wrote last: `CLOTH_ALTERNATE_ORDER` = 1 (a tuning knob; off by default).
+/// Whether semi-implicit Euler's packed passes on a grid of `vertices` alternate the order in
+/// which their workgroups take the grid's blocks (substep `s` of a submission backward when `s` is
+/// odd; `REVERSED_ORDER` in `cloth_step.wgsl` / `.comp`): where a substep moves at most
+/// [`ALTERNATE_ORDER_MAX_SUBSTEP_BYTES`], unless `CLOTH_ALTERNATE_ORDER` says otherwise (a tuning
+/// knob for benchmarks: 1 always, 0 never). Only where the workgroups update blocks
+/// ([`grid_block_width`] > 0). The results do not depend on it: each vertex's update reads only
+/// the state before the substep.
 ///
 /// # Errors
 /// The variable and its value when it is neither 0 nor 1.
-pub fn alternate_order() -> Result<bool, String> {
-    flag("CLOTH_ALTERNATE_ORDER", false)
+pub fn alternates_order(vertices: u64) -> Result<bool, String> {
+    alternates_order_from(std::env::var("CLOTH_ALTERNATE_ORDER").ok().as_deref(), vertices)
 }
 
-/// Whether the kernels read the deepest penetration so far before they raise it with an atomic
-/// maximum: `CLOTH_PENETRATION_FILTER` = 1 (a tuning knob; off by default).
-///
-/// # Errors
-/// The variable and its value when it is neither 0 nor 1.
-pub fn penetration_filter() -> Result<bool, String> {
-    flag("CLOTH_PENETRATION_FILTER", false)
-}
-
-/// The environment variable `name` as 0 or 1, `default` when unset.
-fn flag(name: &str, default: bool) -> Result<bool, String> {
-    match std::env::var(name) {
-        Ok(text) if !text.trim().is_empty() => match text.trim() {
-            "0" => Ok(false),
-            "1" => Ok(true),
-            _ => Err(format!("{name}={text} (0 or 1)")),
-        },
-        _ => Ok(default),
+/// [`alternates_order`] with the variable's value given (`None`: unset).
+fn alternates_order_from(explicit: Option<&str>, vertices: u64) -> Result<bool, String> {
+    match explicit.map(str::trim).filter(|t| !t.is_empty()) {
+        None => Ok(vertices * 2 * PackedState::VERTEX_BYTES <= ALTERNATE_ORDER_MAX_SUBSTEP_BYTES),
+        Some("0") => Ok(false),
+        Some("1") => Ok(true),
+        Some(other) => Err(format!("CLOTH_ALTERNATE_ORDER={other} (0 or 1)")),
     }
 }
 
@@ -730,14 +706,11 @@ pub fn checked_workgroup_size(backend: &'static str) -> Result<u32, crate::error
         what,
         fix: format!("unset it for the default, {DEFAULT_BLOCK_WIDTH}"),
     })?;
-    let unset = |what: String| crate::error::SimError::Unsupported {
+    alternates_order(0).map_err(|what| crate::error::SimError::Unsupported {
         backend,
         what,
-        fix: "unset it for the default".to_string(),
-    };
-    rows_per_invocation().map_err(unset)?;
-    alternate_order().map_err(unset)?;
-    penetration_filter().map_err(unset)?;
+        fix: "unset it for the default (alternate where a substep moves at most 100 MB)".to_string(),
+    })?;
     Ok(size)
 }
 
@@ -819,6 +792,18 @@ mod tests {
         assert_eq!(PackedState::enabled_from(Some(" 1 ")), Ok(true));
         let wrong = PackedState::enabled_from(Some("yes")).unwrap_err();
         assert!(wrong.contains("CLOTH_PACKED_STATE=yes"), "{wrong}");
+    }
+
+    #[test]
+    fn the_order_alternates_where_the_state_outgrows_the_cache() {
+        // 1024²: 50 MB a substep, alternates; 2048²: 201 MB, does not.
+        assert_eq!(alternates_order_from(None, 1024 * 1024), Ok(true));
+        assert_eq!(alternates_order_from(None, 2048 * 2048), Ok(false));
+        assert_eq!(alternates_order_from(Some(""), 32 * 32), Ok(true));
+        assert_eq!(alternates_order_from(Some("1"), 2048 * 2048), Ok(true));
+        assert_eq!(alternates_order_from(Some(" 0 "), 1024 * 1024), Ok(false));
+        let wrong = alternates_order_from(Some("yes"), 1).unwrap_err();
+        assert!(wrong.contains("CLOTH_ALTERNATE_ORDER=yes"), "{wrong}");
     }
 
     #[test]

@@ -58,10 +58,9 @@ pub const BLOCK_WIDTH_CONSTANT_ID: u32 = 107;
 /// Specialization-constant ids of `PACKED_IN` and `PACKED_OUT` in `cloth_step.comp`
 /// (`cloth_core::layout::PackedState`).
 pub const PACKED_CONSTANT_IDS: [u32; 2] = [108, 109];
-/// Specialization-constant ids of `ROWS_PER_INVOCATION`, `REVERSED_ORDER` and
-/// `PENETRATION_FILTER` in `cloth_step.comp` (`cloth_core::layout::rows_per_invocation`,
-/// `alternate_order`, `penetration_filter`).
-pub const PACKED_TUNING_CONSTANT_IDS: [u32; 3] = [110, 111, 112];
+/// Specialization-constant id of `REVERSED_ORDER` in `cloth_step.comp`
+/// (`cloth_core::layout::alternates_order`).
+pub const REVERSED_ORDER_CONSTANT_ID: u32 = 110;
 /// Binding of XPBD's colour range, a dynamic uniform buffer.
 const COLOR_RANGE_BINDING: u32 = 10;
 
@@ -125,7 +124,7 @@ pub(crate) struct PackedPasses {
     pub first_pipeline: Arc<ComputePipeline>,
     /// The pipelines of `middle` and `last` by the order the substep takes the grid's blocks
     /// in: `[forward, backward]` (the same pipeline twice unless
-    /// `cloth_core::layout::alternate_order`); substep `s` of a submission goes backward when
+    /// `cloth_core::layout::alternates_order`); substep `s` of a submission goes backward when
     /// `s` is odd.
     pub middle_pipelines: [Arc<ComputePipeline>; 2],
     pub last_pipelines: [Arc<ComputePipeline>; 2],
@@ -136,7 +135,7 @@ pub(crate) struct PackedPasses {
     /// `last`'s descriptor set when the `vec4` state `k` is current, reading packed state `m`:
     /// `last[k][m]`.
     pub last: [[Arc<DescriptorSet>; 2]; 2],
-    /// Workgroups along x, y, z (`ROWS_PER_INVOCATION` rows an invocation).
+    /// Workgroups along x, y, z (those of the per-substep kernel).
     pub workgroups: [u32; 3],
 }
 
@@ -164,9 +163,9 @@ pub(crate) fn workgroups(items: u32, max_x: u32) -> [u32; 3] {
 
 /// Workgroups of the per-substep kernel when each updates a `block_width`-wide block of the grid
 /// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
-fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32, rows: u32) -> [u32; 3] {
+fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> [u32; 3] {
     let [nx, ny] = scene.cloth.resolution;
-    workgroups(cloth_core::layout::block_invocations_by_rows(nx, ny, block_width, workgroup_size(), rows), max_x)
+    workgroups(cloth_core::layout::block_invocations(nx, ny, block_width, workgroup_size()), max_x)
 }
 
 /// A SPIR-V module whose pipelines share one layout (reflected from the module; XPBD's colour
@@ -282,7 +281,7 @@ pub(crate) fn plan(
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
     let block_width = cloth_core::layout::grid_block_width(workgroup_size(), scene.cloth.resolution[0]);
-    let blocks = block_workgroups(scene, block_width, max_x, 1);
+    let blocks = block_workgroups(scene, block_width, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let mut uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)> = Vec::new();
     let mut buffer_with = |usage: BufferUsage, bytes: Vec<u8>| -> Result<Subbuffer<[u8]>, SimError> {
@@ -352,23 +351,18 @@ pub(crate) fn plan(
                             // Packed state m in, 1 - m out; the vec4 bindings the pass does not use
                             // hold state buffers it does not touch either.
                             let packed_io = |m: usize| [&xv[m], &pv[m], &xv[1 - m], &pv[1 - m], pins];
-                            // Rows an invocation, and the knobs (checked at creation).
-                            let rows = if block_width > 0 {
-                                cloth_core::layout::rows_per_invocation().unwrap_or(1)
-                            } else {
-                                1
-                            };
-                            let alternate = block_width > 0 && cloth_core::layout::alternate_order().unwrap_or(false);
-                            let filter = u32::from(cloth_core::layout::penetration_filter().unwrap_or(false));
+                            // Whether the substeps alternate the order of the blocks (the
+                            // knob is checked at creation).
+                            let vertices = data.positions.len() as u64;
+                            let alternate =
+                                block_width > 0 && cloth_core::layout::alternates_order(vertices).unwrap_or(false);
                             let pipeline = |packed_in: u32, packed_out: u32, reversed: bool| {
                                 kernel.pipeline_with([
                                     (STAGE_CONSTANT_ID, 0),
                                     (BLOCK_WIDTH_CONSTANT_ID, block_width),
                                     (PACKED_CONSTANT_IDS[0], packed_in),
                                     (PACKED_CONSTANT_IDS[1], packed_out),
-                                    (PACKED_TUNING_CONSTANT_IDS[0], rows),
-                                    (PACKED_TUNING_CONSTANT_IDS[1], u32::from(reversed)),
-                                    (PACKED_TUNING_CONSTANT_IDS[2], filter),
+                                    (REVERSED_ORDER_CONSTANT_ID, u32::from(reversed)),
                                 ])
                             };
                             let both = |packed_in: u32,
@@ -394,7 +388,7 @@ pub(crate) fn plan(
                                     [for_k(0, packed_io(0))?, for_k(0, packed_io(1))?],
                                     [for_k(1, packed_io(0))?, for_k(1, packed_io(1))?],
                                 ],
-                                workgroups: block_workgroups(scene, block_width, max_x, rows),
+                                workgroups: blocks,
                             })
                         }
                         _ => None,

@@ -87,7 +87,7 @@ pub(crate) struct PackedPasses {
     pub first_pipeline: wgpu::ComputePipeline,
     /// The pipelines of `middle` and `last` by the order the substep takes the grid's blocks
     /// in: `[forward, backward]` (the same pipeline twice unless
-    /// `cloth_core::layout::alternate_order`); substep `s` of a submission goes backward when
+    /// `cloth_core::layout::alternates_order`); substep `s` of a submission goes backward when
     /// `s` is odd.
     pub middle_pipelines: [wgpu::ComputePipeline; 2],
     pub last_pipelines: [wgpu::ComputePipeline; 2],
@@ -98,7 +98,7 @@ pub(crate) struct PackedPasses {
     /// `last`'s bind group when the `vec4` state `k` is current, reading packed state `m`:
     /// `last[k][m]`.
     pub last: [[wgpu::BindGroup; 2]; 2],
-    /// Workgroups along x and y (`ROWS_PER_INVOCATION` rows an invocation).
+    /// Workgroups along x and y (those of the per-substep kernel).
     pub workgroups: (u32, u32),
 }
 
@@ -168,9 +168,9 @@ const STATE_BINDINGS: [Binding; 7] = [
 
 /// Workgroups of the per-substep kernel when each updates a `block_width`-wide block of the grid
 /// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
-fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32, rows: u32) -> (u32, u32) {
+fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> (u32, u32) {
     let [nx, ny] = scene.cloth.resolution;
-    workgroups(cloth_core::layout::block_invocations_by_rows(nx, ny, block_width, workgroup_size(), rows), max_x)
+    workgroups(cloth_core::layout::block_invocations(nx, ny, block_width, workgroup_size()), max_x)
 }
 
 /// A compiled kernel: its module's pipelines share one bind group layout.
@@ -301,7 +301,7 @@ pub(crate) fn plan(
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
     let block_width = cloth_core::layout::grid_block_width(workgroup_size(), scene.cloth.resolution[0]);
-    let blocks = block_workgroups(scene, block_width, max_x, 1);
+    let blocks = block_workgroups(scene, block_width, max_x);
     let [p, v] = [&state.positions, &state.velocities];
     let name = ["A", "B"];
     match scene.integrator {
@@ -395,14 +395,11 @@ pub(crate) fn plan(
                             // Packed state m in, 1 - m out; the vec4 bindings the pass does not use
                             // hold state buffers it does not touch either.
                             let packed_io = |m: usize| [&xv[m], &pv[m], &xv[1 - m], &pv[1 - m], pins];
-                            // Rows an invocation, and the knobs (checked at creation).
-                            let rows = if block_width > 0 {
-                                cloth_core::layout::rows_per_invocation().unwrap_or(1)
-                            } else {
-                                1
-                            };
-                            let alternate = block_width > 0 && cloth_core::layout::alternate_order().unwrap_or(false);
-                            let filter = u32::from(cloth_core::layout::penetration_filter().unwrap_or(false));
+                            // Whether the substeps alternate the order of the blocks (the
+                            // knob is checked at creation).
+                            let vertices = data.positions.len() as u64;
+                            let alternate =
+                                block_width > 0 && cloth_core::layout::alternates_order(vertices).unwrap_or(false);
                             let pipeline = |label: &str, packed_in: u32, packed_out: u32, reversed: bool| {
                                 kernel.pipeline(
                                     label,
@@ -411,9 +408,7 @@ pub(crate) fn plan(
                                         ("BLOCK_WIDTH", block_width),
                                         ("PACKED_IN", packed_in),
                                         ("PACKED_OUT", packed_out),
-                                        ("ROWS_PER_INVOCATION", rows),
                                         ("REVERSED_ORDER", u32::from(reversed)),
-                                        ("PENETRATION_FILTER", filter),
                                     ],
                                 )
                             };
@@ -454,7 +449,7 @@ pub(crate) fn plan(
                                         )
                                     })
                                 }),
-                                workgroups: block_workgroups(scene, block_width, max_x, rows),
+                                workgroups: blocks,
                             })
                         }
                         _ => None,
