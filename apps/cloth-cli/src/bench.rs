@@ -204,10 +204,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
     println!(
         "fused: substeps per dispatch (the tiled Euler kernel fuses several); state: bytes a vertex the substeps hand each \
          other (24: semi-implicit Euler's packed state, 32: two vec4s; on the packed state the substeps take the grid's \
-         blocks forward and backward by turns where a substep moves at most {} MB, CLOTH_ALTERNATE_ORDER); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
+         blocks forward and backward by turns where a substep moves {} to {} MB, CLOTH_ALTERNATE_ORDER); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
          of the work; Gvs/s: 1e9 vertex-substeps per second (from the GPU time where there is one); ceiling: that \
          throughput times {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes over the copy bandwidth; sub/w: submissions and host \
          waits per frame (the wait that ends the measurement included).",
+        cloth_core::layout::ALTERNATE_ORDER_MIN_SUBSTEP_BYTES / 1_000_000,
         cloth_core::layout::ALTERNATE_ORDER_MAX_SUBSTEP_BYTES / 1_000_000
     );
     if let Some(path) = &args.csv {

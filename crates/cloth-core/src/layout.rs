@@ -653,23 +653,32 @@ pub fn block_invocations(nx: u32, ny: u32, block_width: u32, threads: u32) -> u3
     nx.div_ceil(block_width) * ny.div_ceil(threads / block_width) * threads
 }
 
-/// The most bytes a substep of semi-implicit Euler's packed passes may move (its packed state in
-/// and out, 2 × [`PackedState::VERTEX_BYTES`] a vertex) for the passes to alternate the order in
-/// which their workgroups take the grid's blocks by default ([`alternates_order`]): twice the
-/// H100's 50 MB of L2 cache. Taking the blocks forward, then backward, and so on, each substep
-/// starts on the blocks the one before wrote last: the block written at fraction `f` from the end
-/// of a substep is read again after `2 f` of a substep's traffic instead of after all of it, so
-/// the part of the reads the L2 cache serves grows as the state outgrows the cache. Measured on
-/// the H100 (docs/performance.md): 1024² × 64 substeps (50 MB a substep) −5% (vulkano) and −6%
-/// (wgpu); 2048² (201 MB) at most −1%, and vulkano's 2048² rows ran up to 2.5 times slower with
-/// it on several machines, for a reason not found; 512² (13 MB, in the cache either way) the same.
+/// The bytes a substep of semi-implicit Euler's packed passes moves (its packed state in and out,
+/// 2 × [`PackedState::VERTEX_BYTES`] a vertex) above which, up to
+/// [`ALTERNATE_ORDER_MAX_SUBSTEP_BYTES`], the passes alternate the order in which their
+/// workgroups take the grid's blocks by default ([`alternates_order`]): half the H100's 50 MB of
+/// L2 cache. Taking the blocks forward, then backward, and so on, each substep starts on the
+/// blocks the one before wrote last: the block written at fraction `f` from the end of a substep
+/// is read again after `2 f` of a substep's traffic instead of after all of it, so more of the
+/// reads come from the L2 cache once the state stops fitting in it. Below this the state stays in
+/// the cache in either order and the switch of pipeline between substeps only costs: measured on
+/// the H100 (docs/performance.md), 512² × 64 (13 MB) +0.3% and the flag at 512×341 × 4247
+/// substeps (8 MB) +1% to +1.5%.
+pub const ALTERNATE_ORDER_MIN_SUBSTEP_BYTES: u64 = 25_000_000;
+
+/// The most bytes a substep may move for the packed passes to alternate the order of the blocks
+/// by default (see [`ALTERNATE_ORDER_MIN_SUBSTEP_BYTES`]): twice the H100's L2 cache. Measured on
+/// the H100: 1024² × 64 substeps (50 MB a substep) −4.9% (vulkano) and −6.4% (wgpu); 2048²
+/// (201 MB) −1%, but vulkano's 2048² rows ran up to 2.5 times slower with it on three of five
+/// machines, for a reason not found.
 pub const ALTERNATE_ORDER_MAX_SUBSTEP_BYTES: u64 = 100_000_000;
 
 /// Whether semi-implicit Euler's packed passes on a grid of `vertices` alternate the order in
 /// which their workgroups take the grid's blocks (substep `s` of a submission backward when `s` is
-/// odd; `REVERSED_ORDER` in `cloth_step.wgsl` / `.comp`): where a substep moves at most
-/// [`ALTERNATE_ORDER_MAX_SUBSTEP_BYTES`], unless `CLOTH_ALTERNATE_ORDER` says otherwise (a tuning
-/// knob for benchmarks: 1 always, 0 never). Only where the workgroups update blocks
+/// odd; `REVERSED_ORDER` in `cloth_step.wgsl` / `.comp`): where a substep moves more than
+/// [`ALTERNATE_ORDER_MIN_SUBSTEP_BYTES`] and at most [`ALTERNATE_ORDER_MAX_SUBSTEP_BYTES`], unless
+/// `CLOTH_ALTERNATE_ORDER` says otherwise (a tuning knob for benchmarks and tests: 1 always, 0
+/// never). Only where the workgroups update blocks
 /// ([`grid_block_width`] > 0). The results do not depend on it: each vertex's update reads only
 /// the state before the substep.
 ///
@@ -682,7 +691,10 @@ pub fn alternates_order(vertices: u64) -> Result<bool, String> {
 /// [`alternates_order`] with the variable's value given (`None`: unset).
 fn alternates_order_from(explicit: Option<&str>, vertices: u64) -> Result<bool, String> {
     match explicit.map(str::trim).filter(|t| !t.is_empty()) {
-        None => Ok(vertices * 2 * PackedState::VERTEX_BYTES <= ALTERNATE_ORDER_MAX_SUBSTEP_BYTES),
+        None => {
+            let bytes = vertices * 2 * PackedState::VERTEX_BYTES;
+            Ok(bytes > ALTERNATE_ORDER_MIN_SUBSTEP_BYTES && bytes <= ALTERNATE_ORDER_MAX_SUBSTEP_BYTES)
+        }
         Some("0") => Ok(false),
         Some("1") => Ok(true),
         Some(other) => Err(format!("CLOTH_ALTERNATE_ORDER={other} (0 or 1)")),
@@ -709,7 +721,7 @@ pub fn checked_workgroup_size(backend: &'static str) -> Result<u32, crate::error
     alternates_order(0).map_err(|what| crate::error::SimError::Unsupported {
         backend,
         what,
-        fix: "unset it for the default (alternate where a substep moves at most 100 MB)".to_string(),
+        fix: "unset it for the default (alternate where a substep moves 25 to 100 MB)".to_string(),
     })?;
     Ok(size)
 }
@@ -796,10 +808,14 @@ mod tests {
 
     #[test]
     fn the_order_alternates_where_the_state_outgrows_the_cache() {
-        // 1024²: 50 MB a substep, alternates; 2048²: 201 MB, does not.
+        // 1024²: 50 MB a substep, alternates; 768²: 28 MB, too; 512²: 13 MB and 2048²: 201 MB,
+        // do not.
         assert_eq!(alternates_order_from(None, 1024 * 1024), Ok(true));
+        assert_eq!(alternates_order_from(None, 768 * 768), Ok(true));
+        assert_eq!(alternates_order_from(None, 512 * 512), Ok(false));
         assert_eq!(alternates_order_from(None, 2048 * 2048), Ok(false));
-        assert_eq!(alternates_order_from(Some(""), 32 * 32), Ok(true));
+        assert_eq!(alternates_order_from(Some(""), 32 * 32), Ok(false));
+        assert_eq!(alternates_order_from(Some("1"), 32 * 32), Ok(true));
         assert_eq!(alternates_order_from(Some("1"), 2048 * 2048), Ok(true));
         assert_eq!(alternates_order_from(Some(" 0 "), 1024 * 1024), Ok(false));
         let wrong = alternates_order_from(Some("yes"), 1).unwrap_err();
