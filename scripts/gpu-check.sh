@@ -19,8 +19,9 @@
 #                `config` column first)
 #   knobs        the same bench under several settings of the environment knobs, one after another
 #                in one run (KNOBS: space-separated entries, each `base` or comma-separated
-#                NAME=VALUE pairs, e.g. "base CLOTH_ROWS_PER_INVOCATION=2 base"; KNOB_GRIDS,
-#                KNOB_SUBSTEPS): one CSV ($OUT/knobs.csv, a `knobs` column first)
+#                NAME=VALUE pairs, e.g. "base CLOTH_ALTERNATE_ORDER=0 CLOTH_ALTERNATE_ORDER=1,CLOTH_BLOCK_WIDTH=64";
+#                KNOB_GRIDS, KNOB_SUBSTEPS, KNOB_FRAMES; KNOB_STATS=1 prints vulkano's registers):
+#                one CSV ($OUT/knobs.csv, a quoted `knobs` column first)
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"

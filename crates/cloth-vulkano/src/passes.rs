@@ -127,6 +127,7 @@ pub(crate) struct PackedPasses {
     /// `cloth_core::layout::alternates_order`); substep `s` of a submission goes backward when
     /// `s` is odd.
     pub middle_pipelines: [Arc<ComputePipeline>; 2],
+    /// The same for `last` (substep `n − 1` of a submission of `n`).
     pub last_pipelines: [Arc<ComputePipeline>; 2],
     /// `first`'s descriptor set when the `vec4` state `k` is current.
     pub first: [Arc<DescriptorSet>; 2],

@@ -90,6 +90,7 @@ pub(crate) struct PackedPasses {
     /// `cloth_core::layout::alternates_order`); substep `s` of a submission goes backward when
     /// `s` is odd.
     pub middle_pipelines: [wgpu::ComputePipeline; 2],
+    /// The same for `last` (substep `n − 1` of a submission of `n`).
     pub last_pipelines: [wgpu::ComputePipeline; 2],
     /// `first`'s bind group when the `vec4` state `k` is current.
     pub first: [wgpu::BindGroup; 2],
