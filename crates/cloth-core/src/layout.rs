@@ -227,6 +227,12 @@ impl PackedState {
     /// Bytes a vertex takes in the state the read-backs see: two `vec4`s.
     pub const VEC4_VERTEX_BYTES: u64 = 32;
 
+    /// Bytes a vertex of the state the substeps hand each other (`Simulator::substep_state_bytes`):
+    /// [`Self::VERTEX_BYTES`] where the packed passes run, else [`Self::VEC4_VERTEX_BYTES`].
+    pub fn substep_bytes(packed: bool) -> u32 {
+        (if packed { Self::VERTEX_BYTES } else { Self::VEC4_VERTEX_BYTES }) as u32
+    }
+
     /// Sizes in bytes of the two buffers of one packed state for `vertices` vertices:
     /// `(x, v.x)`, 16 bytes a vertex, and `(v.y, v.z)`, 8 bytes a vertex and one more element
     /// for the time.

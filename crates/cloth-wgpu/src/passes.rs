@@ -71,10 +71,7 @@ impl SubstepPlan {
 
     /// Bytes a vertex of the state the substeps hand each other (`Simulator::substep_state_bytes`).
     pub fn state_bytes(&self) -> u32 {
-        use cloth_core::layout::PackedState;
-        let bytes =
-            if self.active_packed().is_some() { PackedState::VERTEX_BYTES } else { PackedState::VEC4_VERTEX_BYTES };
-        bytes as u32
+        cloth_core::layout::PackedState::substep_bytes(self.active_packed().is_some())
     }
 }
 
