@@ -20,8 +20,9 @@
 #   knobs        the same bench under several settings of the environment knobs, one after another
 #                in one run (KNOBS: space-separated entries, each `base` or comma-separated
 #                NAME=VALUE pairs, e.g. "base CLOTH_ALTERNATE_ORDER=0 CLOTH_ALTERNATE_ORDER=1,CLOTH_BLOCK_WIDTH=64";
-#                KNOB_GRIDS, KNOB_SUBSTEPS, KNOB_FRAMES; KNOB_STATS=1 prints vulkano's registers):
-#                one CSV ($OUT/knobs.csv, a quoted `knobs` column first)
+#                KNOB_GRIDS, KNOB_SUBSTEPS, KNOB_FRAMES; KNOB_STATS=1 prints vulkano's registers;
+#                the pseudo-knob CLOTH_BIN=path runs another build of cloth, carried beside devbin,
+#                to compare builds in one run): one CSV ($OUT/knobs.csv, a quoted `knobs` column first)
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"
@@ -78,10 +79,10 @@ if [[ " $checks " == *" sweep "* ]]; then
     IFS=: read -r k tile wg block <<< "$c"
     CLOTH_FUSED_SUBSTEPS=$k CLOTH_TILE=$tile CLOTH_WORKGROUP_SIZE=$wg CLOTH_BLOCK_WIDTH=$block devbin/cloth bench \
       --backends wgpu,vulkano --grids ${SWEEP_GRIDS:-128,1024,2048} --substeps 53,64 --frames 20 --csv /tmp/sweep.csv > /tmp/sweep.txt 2>&1
-    grep -E "refused|error" /tmp/sweep.txt | head -2 | sed "s/^/$c /"
-    grep -E "^(wgpu|vulkano) " /tmp/sweep.txt | sed "s/^/$c /" | tee -a "$OUT/sweep.txt"
+    grep -E "refused|error" /tmp/sweep.txt | head -2 | sed "s|^|$c |"
+    grep -E "^(wgpu|vulkano) " /tmp/sweep.txt | sed "s|^|$c |" | tee -a "$OUT/sweep.txt"
     if [ ! -s "$OUT/sweep.csv" ]; then sed -n 1p /tmp/sweep.csv | sed 's/^/config,/' > "$OUT/sweep.csv"; fi
-    sed 1d /tmp/sweep.csv | sed "s/^/$c,/" >> "$OUT/sweep.csv"
+    sed 1d /tmp/sweep.csv | sed "s|^|$c,|" >> "$OUT/sweep.csv"
   done
 fi
 if [[ " $checks " == *" knobs "* ]]; then
@@ -90,12 +91,15 @@ if [[ " $checks " == *" knobs "* ]]; then
   for c in ${KNOBS:-base}; do
     settings=()
     [ "$c" != base ] && IFS=, read -r -a settings <<< "$c"
-    env "${settings[@]}" CLOTH_PIPELINE_STATS=${KNOB_STATS:-0} devbin/cloth bench --backends wgpu,vulkano \
+    bin=devbin/cloth
+    for setting in "${settings[@]}"; do [[ $setting == CLOTH_BIN=* ]] && bin=${setting#CLOTH_BIN=}; done
+    chmod +x "$bin"
+    env "${settings[@]}" CLOTH_PIPELINE_STATS=${KNOB_STATS:-0} "$bin" bench --backends wgpu,vulkano \
       --grids ${KNOB_GRIDS:-512,1024,2048} --substeps ${KNOB_SUBSTEPS:-64} --frames ${KNOB_FRAMES:-20} \
       --csv /tmp/knobs.csv > /tmp/knobs.txt 2>&1
-    grep -E "refused|error|pipeline statistics" /tmp/knobs.txt | sort -u | head -16 | sed "s/^/$c /"
-    grep -E "^(wgpu|vulkano) " /tmp/knobs.txt | sed "s/^/$c /" | tee -a "$OUT/knobs.txt"
+    grep -E "refused|error|pipeline statistics" /tmp/knobs.txt | sort -u | head -16 | sed "s|^|$c |"
+    grep -E "^(wgpu|vulkano) " /tmp/knobs.txt | sed "s|^|$c |" | tee -a "$OUT/knobs.txt"
     if [ ! -s "$OUT/knobs.csv" ]; then sed -n 1p /tmp/knobs.csv | sed 's/^/knobs,/' > "$OUT/knobs.csv"; fi
-    sed 1d /tmp/knobs.csv | sed "s/^/\"$c\",/" >> "$OUT/knobs.csv"
+    sed 1d /tmp/knobs.csv | sed "s|^|\"$c\",|" >> "$OUT/knobs.csv"
   done
 fi

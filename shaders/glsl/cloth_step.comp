@@ -138,35 +138,35 @@ layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
 layout(constant_id = 110) const uint REVERSED_ORDER = 0u;
 
 void main() {
-    // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
-    uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
-    // The vertex's grid coordinates.
-    uint vi = i % params.grid_nx;
-    uint vj = i / params.grid_nx;
+    // The vertex's index and grid coordinates.
+    uint i;
+    uint vi;
+    uint vj;
     if (BLOCK_WIDTH != 0u) {
+        // One workgroup per block, the workgroup grid the grid's blocks (cloth_core::layout::
+        // BlockGrid): the workgroup id is the block's column and row, no division needed.
         // (max: not a specialization-constant operation, so vulkano does not fold a quotient by
         // zero when it specializes a pipeline with BLOCK_WIDTH = 0.)
         uint width = max(BLOCK_WIDTH, 1u);
-        uint block = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-        uint blocks_along_i = (params.grid_nx + width - 1u) / width;
+        uvec2 block = gl_WorkGroupID.xy;
         if (REVERSED_ORDER != 0u) {
-            uint block_rows = gl_WorkGroupSize.x / width;
-            uint blocks = blocks_along_i * ((params.grid_ny + block_rows - 1u) / block_rows);
-            if (block >= blocks) {
-                return;
-            }
-            block = blocks - 1u - block;
+            block = gl_NumWorkGroups.xy - 1u - block;
         }
         uint local_index = gl_LocalInvocationIndex;
-        vi = (block % blocks_along_i) * width + local_index % width;
-        vj = (block / blocks_along_i) * (gl_WorkGroupSize.x / width) + local_index / width;
+        vi = block.x * width + local_index % width;
+        vj = block.y * (gl_WorkGroupSize.x / width) + local_index / width;
         if (vi >= params.grid_nx || vj >= params.grid_ny) {
             return;
         }
         i = vj * params.grid_nx + vi;
-    }
-    if (i >= params.vertex_count) {
-        return;
+    } else {
+        // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
+        i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+        if (i >= params.vertex_count) {
+            return;
+        }
+        vi = i % params.grid_nx;
+        vj = i / params.grid_nx;
     }
     vec3 x;
     vec3 v;

@@ -132,33 +132,33 @@ override REVERSED_ORDER: u32 = 0u;
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
            @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
-    // 2D dispatch: more than 65535 workgroups spill into y.
-    var i = id.y * groups.x * WORKGROUP_SIZE + id.x;
-    // The vertex's grid coordinates.
-    var vi = i % params.grid_nx;
-    var vj = i / params.grid_nx;
+    // The vertex's index and grid coordinates.
+    var i: u32;
+    var vi: u32;
+    var vj: u32;
     if (BLOCK_WIDTH != 0u) {
+        // One workgroup per block, the workgroup grid the grid's blocks (cloth_core::layout::
+        // BlockGrid): the workgroup id is the block's column and row, no division needed.
         // (max: no constant division by zero where the pipeline has BLOCK_WIDTH = 0.)
         let width = max(BLOCK_WIDTH, 1u);
-        var block = group.y * groups.x + group.x;
-        let blocks_along_i = (params.grid_nx + width - 1u) / width;
+        var block = group.xy;
         if (REVERSED_ORDER != 0u) {
-            let block_rows = WORKGROUP_SIZE / width;
-            let blocks = blocks_along_i * ((params.grid_ny + block_rows - 1u) / block_rows);
-            if (block >= blocks) {
-                return;
-            }
-            block = blocks - 1u - block;
+            block = groups.xy - 1u - block;
         }
-        vi = (block % blocks_along_i) * width + local % width;
-        vj = (block / blocks_along_i) * (WORKGROUP_SIZE / width) + local / width;
+        vi = block.x * width + local % width;
+        vj = block.y * (WORKGROUP_SIZE / width) + local / width;
         if (vi >= params.grid_nx || vj >= params.grid_ny) {
             return;
         }
         i = vj * params.grid_nx + vi;
-    }
-    if (i >= params.vertex_count) {
-        return;
+    } else {
+        // 2D dispatch: more than 65535 workgroups spill into y.
+        i = id.y * groups.x * WORKGROUP_SIZE + id.x;
+        if (i >= params.vertex_count) {
+            return;
+        }
+        vi = i % params.grid_nx;
+        vj = i / params.grid_nx;
     }
     let own = state_in(i);
     let x = own.x;

@@ -613,8 +613,11 @@ pub fn workgroup_size() -> Result<u32, String> {
 /// invocations) cut 1024² × 64 substeps from 2.66 to 2.35 ms and 2048² × 64 from 9.57 to
 /// 8.26 ms (wgpu); 16 and 32 gained a little less. Once the spring loop was leaner (one inverse
 /// square root, no edge checks inside the grid, 2026-11-27), 128 (128 × 2 blocks) was 2-4% faster
-/// than 64 at 2048² and the same at 1024². Workgroups of fewer invocations get rows of theirs.
-pub const DEFAULT_BLOCK_WIDTH: u32 = 128;
+/// than 64 at 2048² and the same at 1024². Since the workgroups find their block without a
+/// division ([`BlockGrid`], stop 17), 64 is again the fastest of 16 to 128, at every size from
+/// 768² to 2048² on both backends (1024² × 64: 1.5% faster than 128; 2048²: 0.8%) and the same
+/// at 512². Workgroups of fewer invocations get rows of theirs.
+pub const DEFAULT_BLOCK_WIDTH: u32 = 64;
 
 /// [`DEFAULT_BLOCK_WIDTH`] (at most the workgroup size `threads`), or the value of
 /// `CLOTH_BLOCK_WIDTH` (a tuning knob for benchmarks), checked against `threads`.
@@ -628,7 +631,7 @@ pub fn block_width(threads: u32) -> Result<u32, String> {
 /// The block width the per-substep kernels use on a grid `nx` vertices wide: [`block_width`]
 /// (0 if the knob is wrong, which `checked_workgroup_size` reports first), but no wider than the
 /// grid's next power of two, so a narrow grid does not leave most of each workgroup idle (at
-/// 128 × 2 a 12-wide grid would use 24 of 256 invocations; at 16 × 16 it uses 192).
+/// 64 × 4 a 12-wide grid would use 48 of 256 invocations; at 16 × 16 it uses 192).
 pub fn grid_block_width(threads: u32, nx: u32) -> u32 {
     let width = block_width(threads).unwrap_or(0);
     if width == 0 { 0 } else { width.min(nx.max(1).next_power_of_two()) }
@@ -649,14 +652,40 @@ fn block_width_from(explicit: Option<&str>, threads: u32) -> Result<u32, String>
     Ok(width)
 }
 
-/// Invocations the per-substep kernels dispatch for an `nx × ny` grid at `threads` a workgroup:
-/// one per vertex, or with `block_width` > 0 whole `block_width × (threads / block_width)`
-/// blocks covering the grid (the kernels skip the invocations past its edges).
-pub fn block_invocations(nx: u32, ny: u32, block_width: u32, threads: u32) -> u32 {
-    if block_width == 0 {
-        return nx * ny;
+/// How the per-substep kernels (`cloth_step.wgsl` / `.comp`) cover an `nx × ny` grid at `threads`
+/// invocations a workgroup: the block width they are specialized with (`BLOCK_WIDTH`) and the
+/// workgroups to dispatch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlockGrid {
+    /// [`grid_block_width`], or 0 (a workgroup's worth of consecutive vertices) where the blocks
+    /// would not fit the device's workgroup counts.
+    pub width: u32,
+    /// Workgroups along x and y. With `width` > 0, one workgroup per block, `[blocks along i,
+    /// blocks along j]`: a workgroup's id is its block's column and row, so the kernel finds its
+    /// vertices without an integer division (measured on the H100: docs/performance.md). With
+    /// `width` = 0, one invocation per vertex, along x up to the device's limit, the rest along y.
+    pub workgroups: [u32; 2],
+}
+
+impl BlockGrid {
+    /// The blocks of an `nx × ny` grid at `threads` invocations a workgroup, on a device that
+    /// allows `max_per_dimension` workgroups along each axis (Vulkan guarantees 65 535).
+    /// `width` is [`grid_block_width`] unless its blocks exceed that count along an axis (a grid
+    /// more than about 262 000 vertices tall at the default 64 × 4 blocks), where the kernels
+    /// fall back to rows, which every grid that fits in memory can be dispatched as.
+    pub fn new(threads: u32, nx: u32, ny: u32, max_per_dimension: u32) -> Self {
+        let width = grid_block_width(threads, nx);
+        if width > 0 {
+            let blocks = [nx.div_ceil(width), ny.div_ceil(threads / width)];
+            if blocks.iter().all(|&b| b <= max_per_dimension) {
+                return Self { width, workgroups: blocks };
+            }
+        }
+        let groups = (nx * ny).div_ceil(threads).max(1);
+        let max = max_per_dimension.max(1);
+        let workgroups = if groups <= max { [groups, 1] } else { [max, groups.div_ceil(max)] };
+        Self { width: 0, workgroups }
     }
-    nx.div_ceil(block_width) * ny.div_ceil(threads / block_width) * threads
 }
 
 /// The bytes a substep of semi-implicit Euler's packed passes moves (its packed state in and out,
@@ -765,6 +794,28 @@ mod tests {
         for nx in 1..300 {
             let w = grid_block_width(256, nx);
             assert!(w.is_power_of_two() && 256u32.is_multiple_of(w), "{nx}: {w}");
+        }
+    }
+
+    #[test]
+    fn block_grids_cover_the_grid_one_workgroup_a_block() {
+        if std::env::var_os("CLOTH_BLOCK_WIDTH").is_some() {
+            return; // (the knob is not set in the tests)
+        }
+        // 1024² at 64 × 4: 16 blocks across, 256 down.
+        assert_eq!(BlockGrid::new(256, 1024, 1024, 65_535), BlockGrid { width: 64, workgroups: [16, 256] });
+        // Remainders round up: 150 × 41 at 64 × 4 is 3 × 11 blocks.
+        assert_eq!(BlockGrid::new(256, 150, 41, 65_535), BlockGrid { width: 64, workgroups: [3, 11] });
+        // Narrow: 12 wide at 16 × 16.
+        assert_eq!(BlockGrid::new(256, 12, 40, 65_535), BlockGrid { width: 16, workgroups: [1, 3] });
+        // Too many block rows for the device: rows of 256 vertices, spilling into y.
+        assert_eq!(BlockGrid::new(256, 300, 300_000, 65_535), BlockGrid { width: 0, workgroups: [65_535, 6] });
+        assert_eq!(BlockGrid::new(256, 4, 1000, 8), BlockGrid { width: 0, workgroups: [8, 2] });
+        for (nx, ny) in [(1, 1), (7, 13), (128, 2), (129, 3), (1000, 999)] {
+            let grid = BlockGrid::new(256, nx, ny, 65_535);
+            let [x, y] = grid.workgroups;
+            let (w, h) = (grid.width, 256 / grid.width);
+            assert!(x * w >= nx && (x - 1) * w < nx && y * h >= ny && (y - 1) * h < ny, "{nx} × {ny}: {grid:?}");
         }
     }
 

@@ -159,13 +159,6 @@ pub(crate) fn workgroups(items: u32, max_x: u32) -> [u32; 3] {
     if groups <= max_x { [groups, 1, 1] } else { [max_x, groups.div_ceil(max_x), 1] }
 }
 
-/// Workgroups of the per-substep kernel when each updates a `block_width`-wide block of the grid
-/// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
-fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> [u32; 3] {
-    let [nx, ny] = scene.cloth.resolution;
-    workgroups(cloth_core::layout::block_invocations(nx, ny, block_width, workgroup_size()), max_x)
-}
-
 /// A SPIR-V module whose pipelines share one layout (reflected from the module; XPBD's colour
 /// range made dynamic).
 struct Kernel {
@@ -278,8 +271,11 @@ pub(crate) fn plan(
     let max_x = device.physical_device().properties().max_compute_work_group_count[0];
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
-    let block_width = cloth_core::layout::grid_block_width(workgroup_size(), scene.cloth.resolution[0]);
-    let blocks = block_workgroups(scene, block_width, max_x);
+    let [nx, ny] = scene.cloth.resolution;
+    let counts = device.physical_device().properties().max_compute_work_group_count;
+    let block_grid = cloth_core::layout::BlockGrid::new(workgroup_size(), nx, ny, counts[0].min(counts[1]));
+    let block_width = block_grid.width;
+    let blocks = [block_grid.workgroups[0], block_grid.workgroups[1], 1];
     let [p, v] = [&state.positions, &state.velocities];
     let mut uploads: Vec<(Subbuffer<[u8]>, Vec<u8>)> = Vec::new();
     let mut buffer_with = |usage: BufferUsage, bytes: Vec<u8>| -> Result<Subbuffer<[u8]>, SimError> {

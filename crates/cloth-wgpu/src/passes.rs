@@ -164,13 +164,6 @@ const STATE_BINDINGS: [Binding; 7] = [
     Binding::Storage { read_only: false }, // deepest penetration
 ];
 
-/// Workgroups of the per-substep kernel when each updates a `block_width`-wide block of the grid
-/// (`cloth_core::layout::block_width`; 0: a row's worth, as [`workgroups`]).
-fn block_workgroups(scene: &Scene, block_width: u32, max_x: u32) -> (u32, u32) {
-    let [nx, ny] = scene.cloth.resolution;
-    workgroups(cloth_core::layout::block_invocations(nx, ny, block_width, workgroup_size()), max_x)
-}
-
 /// A compiled kernel: its module's pipelines share one bind group layout.
 struct Kernel<'a> {
     device: &'a wgpu::Device,
@@ -298,8 +291,10 @@ pub(crate) fn plan(
     let max_x = device.limits().max_compute_workgroups_per_dimension;
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
-    let block_width = cloth_core::layout::grid_block_width(workgroup_size(), scene.cloth.resolution[0]);
-    let blocks = block_workgroups(scene, block_width, max_x);
+    let [nx, ny] = scene.cloth.resolution;
+    let block_grid = cloth_core::layout::BlockGrid::new(workgroup_size(), nx, ny, max_x);
+    let block_width = block_grid.width;
+    let blocks = (block_grid.workgroups[0], block_grid.workgroups[1]);
     let [p, v] = [&state.positions, &state.velocities];
     let name = ["A", "B"];
     match scene.integrator {
