@@ -83,6 +83,9 @@ void add_spring(inout vec3 force, int i, int j, uint index, bool interior, int d
     if (!interior) {
         int ni = i + di;
         int nj = j + dj;
+        // (An early return, not a flag around the load below: with a flag every neighbour's
+        // load sits under a condition, and the WGSL twin's kernel was 6-8% slower on the H100,
+        // docs/performance.md.)
         if (ni < 0 || nj < 0 || ni >= int(params.grid_nx) || nj >= int(params.grid_ny)) {
             return;
         }
