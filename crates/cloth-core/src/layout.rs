@@ -681,11 +681,17 @@ impl BlockGrid {
                 return Self { width, workgroups: blocks };
             }
         }
-        let groups = (nx * ny).div_ceil(threads).max(1);
-        let max = max_per_dimension.max(1);
-        let workgroups = if groups <= max { [groups, 1] } else { [max, groups.div_ceil(max)] };
-        Self { width: 0, workgroups }
+        Self { width: 0, workgroups: spilled_workgroups(nx * ny, threads, max_per_dimension) }
     }
+}
+
+/// Workgroups of `threads` invocations for `items` invocations in all (at least one workgroup):
+/// along x up to `max_per_dimension`, the rest along y. Each kernel dispatched this way forms its
+/// item index as `id.y · groups.x · threads + id.x` and skips the indices past `items`.
+pub fn spilled_workgroups(items: u32, threads: u32, max_per_dimension: u32) -> [u32; 2] {
+    let groups = items.div_ceil(threads).max(1);
+    let max = max_per_dimension.max(1);
+    if groups <= max { [groups, 1] } else { [max, groups.div_ceil(max)] }
 }
 
 /// The bytes a substep of semi-implicit Euler's packed passes moves (its packed state in and out,

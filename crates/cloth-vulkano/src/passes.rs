@@ -154,9 +154,8 @@ fn device_error(reason: impl std::fmt::Display) -> SimError {
 
 /// Workgroups for `items` invocations: along x up to the device's limit, the rest along y.
 pub(crate) fn workgroups(items: u32, max_x: u32) -> [u32; 3] {
-    let groups = items.div_ceil(workgroup_size()).max(1);
-    let max_x = max_x.max(1);
-    if groups <= max_x { [groups, 1, 1] } else { [max_x, groups.div_ceil(max_x), 1] }
+    let [x, y] = cloth_core::layout::spilled_workgroups(items, workgroup_size(), max_x);
+    [x, y, 1]
 }
 
 /// A SPIR-V module whose pipelines share one layout (reflected from the module; XPBD's colour
@@ -268,11 +267,11 @@ pub(crate) fn plan(
 ) -> Result<SubstepPlan, SimError> {
     use vulkano::buffer::BufferUsage;
     let storage = BufferUsage::STORAGE_BUFFER | BufferUsage::TRANSFER_DST | BufferUsage::TRANSFER_SRC;
-    let max_x = device.physical_device().properties().max_compute_work_group_count[0];
+    let counts = device.physical_device().properties().max_compute_work_group_count;
+    let max_x = counts[0];
     let vertices = workgroups(data.positions.len() as u32, max_x);
     // The per-substep kernel's workgroups each update a block of the grid (BLOCK_WIDTH).
     let [nx, ny] = scene.cloth.resolution;
-    let counts = device.physical_device().properties().max_compute_work_group_count;
     let block_grid = cloth_core::layout::BlockGrid::new(workgroup_size(), nx, ny, counts[0].min(counts[1]));
     let block_width = block_grid.width;
     let blocks = [block_grid.workgroups[0], block_grid.workgroups[1], 1];

@@ -147,9 +147,8 @@ fn bind_group_layout(device: &wgpu::Device, label: &str, bindings: &[Binding]) -
 
 /// Workgroups for `items` invocations: along x up to the device's limit, the rest along y.
 pub(crate) fn workgroups(items: u32, max_x: u32) -> (u32, u32) {
-    let groups = items.div_ceil(workgroup_size()).max(1);
-    let max_x = max_x.max(1);
-    if groups <= max_x { (groups, 1) } else { (max_x, groups.div_ceil(max_x)) }
+    let [x, y] = cloth_core::layout::spilled_workgroups(items, workgroup_size(), max_x);
+    (x, y)
 }
 
 /// The bindings 0-6 of both force kernels (`cloth_step.wgsl`, `cloth_step_tiled.wgsl`): the
