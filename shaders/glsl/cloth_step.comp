@@ -81,15 +81,17 @@ void add_spring(inout vec3 force, int i, int j, uint index, bool interior, int d
                 float rest_length, vec3 x, vec3 v) {
     uint other = uint(int(index) + dj * int(params.grid_nx) + di);
     if (!interior) {
-        int ni = i + di;
-        int nj = j + dj;
+        // The neighbour's column and row as uint: one off the grid on the low side wraps to a
+        // huge value, so one comparison a coordinate tests both sides (nx, ny < 2^31).
+        uint ni = uint(i + di);
+        uint nj = uint(j + dj);
         // (An early return, not a flag around the load below: with a flag every neighbour's
         // load sits under a condition, and the WGSL twin's kernel was 6-8% slower on the H100,
         // docs/performance.md.)
-        if (ni < 0 || nj < 0 || ni >= int(params.grid_nx) || nj >= int(params.grid_ny)) {
+        if (ni >= params.grid_nx || nj >= params.grid_ny) {
             return;
         }
-        other = uint(nj) * params.grid_nx + uint(ni);
+        other = nj * params.grid_nx + ni;
     }
     float damping = 0.0;
     if (EFFECT_SPRING_DAMPING) {

@@ -75,15 +75,17 @@ fn add_spring(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u32, inter
               kind: u32, rest_length: f32, x: vec3<f32>, v: vec3<f32>) {
     var other = u32(i32(index) + dj * i32(params.grid_nx) + di);
     if (!interior) {
-        let ni = i + di;
-        let nj = j + dj;
+        // The neighbour's column and row as u32: one off the grid on the low side wraps to a
+        // huge value, so one comparison a coordinate tests both sides (nx, ny < 2^31).
+        let ni = u32(i + di);
+        let nj = u32(j + dj);
         // (An early return, not a flag around the load below: with a flag every neighbour's
         // load sits under a condition and the NVIDIA driver's kernel was 6-8% slower on the
         // H100, docs/performance.md.)
-        if ((ni < 0) | (nj < 0) | (ni >= i32(params.grid_nx)) | (nj >= i32(params.grid_ny))) {
+        if ((ni >= params.grid_nx) | (nj >= params.grid_ny)) {
             return;
         }
-        other = u32(nj) * params.grid_nx + u32(ni);
+        other = nj * params.grid_nx + ni;
     }
     var damping = 0.0;
     if (EFFECT_SPRING_DAMPING) {
