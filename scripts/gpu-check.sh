@@ -10,9 +10,11 @@
 #                GPU backend
 #   study        `cloth study accuracy` on every backend, writing the report docs/accuracy.md
 #                (and its CSV, SVG and PNG), copied to $OUT
-#   stability    the stability suite's GPU cases (devbin/stability) with CI=1
+#   stability    the stability suite's GPU cases (devbin/stability) with CI=1, then the soak at a
+#                million substeps on each backend (SOAK_SECONDS each, default 200)
 #   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
 #   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs on both GPU backends
+#                (EFFECT_GRIDS, default 128,512; EFFECT_SUBSTEPS, default the scene's own)
 #   sweep        the kernels' tuning knobs, as FUSED:TILE:WORKGROUP:BLOCK (CLOTH_FUSED_SUBSTEPS,
 #                CLOTH_TILE, CLOTH_WORKGROUP_SIZE, CLOTH_BLOCK_WIDTH; SWEEP overrides the list):
 #                128² x 53, 1024² and 2048² x 64 on both backends, one CSV ($OUT/sweep.csv, a
@@ -63,13 +65,14 @@ if [[ " $checks " == *" stability "* ]]; then
   # million substeps (about 10^8 dispatches) do not, and its line is not expected.
   : > "$OUT/soak.txt"
   for b in wgpu vulkano; do
-    echo "== the soak at a million substeps on $b (200 s at most)"
-    CI=1 CLOTH_SOAK_SUBSTEPS=1000000 timeout 200 devbin/stability --nocapture "$b::soak" 2>&1 | tee -a "$OUT/soak.txt" | grep -E "substeps, energy|^test |test result|panicked"
+    echo "== the soak at a million substeps on $b (${SOAK_SECONDS:-200} s at most)"
+    CI=1 CLOTH_SOAK_SUBSTEPS=1000000 timeout "${SOAK_SECONDS:-200}" devbin/stability --nocapture "$b::soak" 2>&1 | tee -a "$OUT/soak.txt" | grep -E "substeps, energy|^test |test result|panicked"
   done
 fi
 if [[ " $checks " == *" effects "* ]]; then
   echo "== bench --effects"
-  devbin/cloth bench --effects --backends wgpu,vulkano --grids 128,512 --frames 10 --csv "$OUT/effects.csv" 2>&1 | tee "$OUT/effects.txt"
+  devbin/cloth bench --effects --backends wgpu,vulkano --grids "${EFFECT_GRIDS:-128,512}" \
+    ${EFFECT_SUBSTEPS:+--substeps "$EFFECT_SUBSTEPS"} --frames 10 --csv "$OUT/effects.csv" 2>&1 | tee "$OUT/effects.txt"
 fi
 if [[ " $checks " == *" sweep "* ]]; then
   echo "== sweep: fused substeps : tile : workgroup size : block width"
