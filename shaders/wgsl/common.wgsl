@@ -1,5 +1,5 @@
-// Shared by every WGSL compute kernel of the cloth (the backend prepends it to each): the
-// effect constants, the buffer structs and the force model.
+// Shared by every WGSL compute kernel of the cloth (the backend prepends it, after layout.wgsl,
+// to each): the effect constants and the force model.
 //
 // The force model mirrors crates/cloth-core/src/forces.rs function by function and operation by
 // operation (same names, same order of the sums), so that f32 results agree with the CPU
@@ -23,56 +23,6 @@ override EFFECT_MOVING_SPHERES: bool = false;
 override WORKGROUP_SIZE: u32 = 256u;
 // Any spring kind at all (one constant, so the branch on it is a constant too).
 override ANY_SPRINGS: bool = EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND;
-
-// cloth_core::layout::GpuSimParams (160 bytes).
-struct SimParams {
-    gravity: vec4<f32>,      // m/s² (xyz)
-    stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
-    damping: vec4<f32>,      // N·s/m by spring kind
-    vertex_mass: f32,        // kg
-    substep_dt: f32,         // s
-    air_drag: f32,           // 1/s
-    vertex_count: u32,
-    sphere_count: u32,
-    grid_nx: u32,
-    grid_ny: u32,
-    effects: u32,
-    wind: vec4<f32>,         // mean wind velocity, m/s (xyz); w: coefficient × area per vertex, N·s/m
-    gust: vec4<f32>,         // x: relative amplitude, y: angular frequency, rad/s
-    pin_velocity: vec4<f32>, // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
-    pin_amplitude: vec4<f32>,// pins' oscillation amplitude, m (xyz)
-    rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
-}
-
-// cloth_core::layout::GpuSphere (64 bytes).
-struct Sphere {
-    center: vec3<f32>,       // m, at time 0
-    radius: f32,             // m
-    stiffness: f32,          // k_c, N/m
-    friction: f32,           // c_f
-    damping: f32,            // N·s/m
-    pad: f32,
-    velocity: vec3<f32>,     // steady velocity, m/s (MovingSpheres)
-    omega: f32,              // angular frequency of the oscillation, rad/s
-    amplitude: vec3<f32>,    // amplitude of the oscillation, m
-    pad2: f32,
-}
-
-// cloth_core::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
-struct Constraint {
-    a: u32,
-    b: u32,
-    kind: u32,
-    rest_length: f32,        // m
-}
-
-// cloth_core::layout::GpuColorRange (16 bytes): the constraints of one XPBD colour.
-struct ColorRange {
-    first: u32,
-    count: u32,
-    first_iteration: u32,    // 1: the multipliers start from 0
-    pad: u32,
-}
 
 // Brief: F_g = m g.
 fn gravity_force(mass: f32, gravity: vec3<f32>) -> vec3<f32> {

@@ -1,5 +1,6 @@
 // The inspector's 3D view: the cloth straight from the simulation's position buffer (normals
 // and colours computed here, on the GPU), instanced spheres and pin markers, and a ground grid.
+// Prepended with layout.wgsl (the Sphere the simulation uploads, checked against the Rust type).
 
 struct Camera {
     view_proj: mat4x4<f32>,
@@ -22,21 +23,13 @@ struct ClothInfo {
     strain_scale: f32,       // strain shown as full colour
 };
 
-// cloth_core::layout::GpuSphere.
-struct Sphere {
-    center: vec3<f32>,
-    radius: f32,
-    stiffness: f32,
-    friction: f32,
-    damping: f32,
-    pad: f32,
-};
-
 @group(0) @binding(0) var<uniform> camera: Camera;
 @group(0) @binding(1) var<uniform> cloth: ClothInfo;
 @group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> velocities: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> spheres: array<Sphere>;
+@group(0) @binding(4) var<storage, read> spheres: array<Sphere>;   // at the drawn state's time
+// cs_vertex_colors only: each vertex's colour, what vs_cloth draws it with.
+@group(0) @binding(5) var<storage, read_write> vertex_colors: array<vec4<f32>>;
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
@@ -55,18 +48,28 @@ fn ramp(t: f32) -> vec3<f32> {
                vec3<f32>(0.95, 0.2, 0.1), max(x * 2.0 - 1.0, 0.0));
 }
 
-@vertex
-fn vs_cloth(@builtin(vertex_index) index: u32) -> VsOut {
+// Contact state of a vertex at x moving at v: 0 free, 1 sticking (on a sphere, tangential speed
+// below 1 mm/s), 2 sliding (the inspector's render tests check it against the same rule on the
+// CPU).
+fn contact_state(x: vec3<f32>, v: vec3<f32>) -> u32 {
+    var state = 0u;
+    for (var s = 0u; s < cloth.sphere_count; s++) {
+        let offset = x - spheres[s].center;
+        let d = length(offset);
+        if (d < spheres[s].radius * 1.002) {
+            let nrm = offset / max(d, 1e-9);
+            let v_t = v - nrm * dot(v, nrm);
+            state = select(2u, 1u, length(v_t) < 1e-3);
+        }
+    }
+    return state;
+}
+
+// The colour of vertex `index` in the current colour mode.
+fn vertex_color(index: u32) -> vec3<f32> {
     let i = index % cloth.nx;
     let j = index / cloth.nx;
     let x = p(i, j);
-    let du = p(min(i + 1u, cloth.nx - 1u), j) - p(max(i, 1u) - 1u, j);
-    let dv = p(i, min(j + 1u, cloth.ny - 1u)) - p(i, max(j, 1u) - 1u);
-    var out: VsOut;
-    out.clip = camera.view_proj * vec4<f32>(x, 1.0);
-    out.normal = normalize(cross(du, dv));
-    out.world = x;
-    var color = vec3<f32>(0.92, 0.45, 0.2);
     let v = velocities[index].xyz;
     if (cloth.color_mode == 1u) {
         // Strain |L/L0 - 1| of one spring kind, averaged over the vertex's springs of that kind.
@@ -95,24 +98,37 @@ fn vs_cloth(@builtin(vertex_index) index: u32) -> VsOut {
                 n += 1.0;
             }
         }
-        color = ramp(strain / max(n, 1.0) / cloth.strain_scale);
+        return ramp(strain / max(n, 1.0) / cloth.strain_scale);
     } else if (cloth.color_mode == 2u) {
         // Contact: free (grey-blue), sticking (green), sliding (red).
-        color = vec3<f32>(0.55, 0.6, 0.75);
-        for (var s = 0u; s < cloth.sphere_count; s++) {
-            let offset = x - spheres[s].center;
-            let d = length(offset);
-            if (d < spheres[s].radius * 1.002) {
-                let nrm = offset / max(d, 1e-9);
-                let v_t = v - nrm * dot(v, nrm);
-                if (length(v_t) < 1e-3) { color = vec3<f32>(0.2, 0.8, 0.3); } else { color = vec3<f32>(0.95, 0.25, 0.15); }
-            }
-        }
+        return array<vec3<f32>, 3>(vec3<f32>(0.55, 0.6, 0.75), vec3<f32>(0.2, 0.8, 0.3), vec3<f32>(0.95, 0.25, 0.15))[contact_state(x, v)];
     } else if (cloth.color_mode == 3u) {
-        color = ramp(length(v) / cloth.speed_scale);
+        return ramp(length(v) / cloth.speed_scale);
     }
-    out.color = color;
+    return vec3<f32>(0.92, 0.45, 0.2);
+}
+
+@vertex
+fn vs_cloth(@builtin(vertex_index) index: u32) -> VsOut {
+    let i = index % cloth.nx;
+    let j = index / cloth.nx;
+    let x = p(i, j);
+    let du = p(min(i + 1u, cloth.nx - 1u), j) - p(max(i, 1u) - 1u, j);
+    let dv = p(i, min(j + 1u, cloth.ny - 1u)) - p(i, max(j, 1u) - 1u);
+    var out: VsOut;
+    out.clip = camera.view_proj * vec4<f32>(x, 1.0);
+    out.normal = normalize(cross(du, dv));
+    out.world = x;
+    out.color = vertex_color(index);
     return out;
+}
+
+// Every vertex's colour into vertex_colors: what vs_cloth draws, for checking it against the CPU.
+@compute @workgroup_size(64)
+fn cs_vertex_colors(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x < cloth.nx * cloth.ny) {
+        vertex_colors[id.x] = vec4<f32>(vertex_color(id.x), 1.0);
+    }
 }
 
 fn shade(normal: vec3<f32>, color: vec3<f32>) -> vec3<f32> {

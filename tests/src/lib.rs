@@ -10,28 +10,43 @@
 //!   case so declared must fail on that backend, and the suite fails if it starts passing.
 
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
+use cloth_gpu::{GpuSimulator, GpuTuning};
 
 /// A backend under test.
 pub struct Backend {
     /// Its name, as in `cloth backends`.
     pub name: &'static str,
-    /// Creates a simulator.
-    pub create: fn(&Scene) -> Result<Box<dyn Simulator>, SimError>,
+    /// Creates a simulator; a GPU backend lays its work out as the tuning says.
+    pub tuned: fn(&Scene, &GpuTuning) -> Result<Box<dyn Simulator>, SimError>,
 }
 
-fn boxed<S: Simulator + 'static>(scene: &Scene) -> Result<Box<dyn Simulator>, SimError> {
+impl Backend {
+    /// Creates a simulator with the default tuning.
+    ///
+    /// # Errors
+    /// What the backend returns.
+    pub fn create(&self, scene: &Scene) -> Result<Box<dyn Simulator>, SimError> {
+        (self.tuned)(scene, &GpuTuning::default())
+    }
+}
+
+fn cpu<S: Simulator + 'static>(scene: &Scene, _: &GpuTuning) -> Result<Box<dyn Simulator>, SimError> {
     Ok(Box::new(S::new(scene)?))
 }
 
+fn gpu<B: cloth_gpu::GpuBackend + 'static>(scene: &Scene, tuning: &GpuTuning) -> Result<Box<dyn Simulator>, SimError> {
+    Ok(Box::new(GpuSimulator::<B>::with_tuning(scene, tuning)?))
+}
+
 /// The f32 CPU reference.
-pub const CPU: Backend = Backend { name: "cpu", create: boxed::<CpuSimulator> };
+pub const CPU: Backend = Backend { name: "cpu", tuned: cpu::<CpuSimulator> };
 /// The f64 CPU reference.
-pub const CPU_F64: Backend = Backend { name: "cpu-f64", create: boxed::<CpuSimulatorF64> };
+pub const CPU_F64: Backend = Backend { name: "cpu-f64", tuned: cpu::<CpuSimulatorF64> };
 /// The WGSL backend.
-pub const WGPU: Backend = Backend { name: "wgpu", create: boxed::<cloth_wgpu::WgpuSimulator> };
+pub const WGPU: Backend = Backend { name: "wgpu", tuned: gpu::<cloth_wgpu::WgpuBackend> };
 
 /// The GLSL/SPIR-V backend.
-pub const VULKANO: Backend = Backend { name: "vulkano", create: boxed::<cloth_vulkano::VulkanoSimulator> };
+pub const VULKANO: Backend = Backend { name: "vulkano", tuned: gpu::<cloth_vulkano::VulkanoBackend> };
 
 /// Every backend of this build.
 pub const BACKENDS: &[&Backend] = &[&CPU, &CPU_F64, &WGPU, &VULKANO];
@@ -93,7 +108,12 @@ pub const EXPECTED_DIFFERENCES: &[ExpectedDifference] = &[
 
 /// Creates a simulator, or says why the backend is skipped (and panics under CI).
 pub fn create(backend: &Backend, scene: &Scene) -> Option<Box<dyn Simulator>> {
-    match (backend.create)(scene) {
+    create_tuned(backend, scene, &GpuTuning::default())
+}
+
+/// [`create`] with a GPU tuning.
+pub fn create_tuned(backend: &Backend, scene: &Scene, tuning: &GpuTuning) -> Option<Box<dyn Simulator>> {
+    match (backend.tuned)(scene, tuning) {
         Ok(sim) => Some(sim),
         Err(SimError::Unavailable { reason, .. }) => {
             if std::env::var_os("CI").is_some() {

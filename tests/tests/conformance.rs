@@ -1,9 +1,9 @@
 //! Conformance cases, written once and run on every backend (see `cloth_conformance`).
 
-use cloth_conformance::{Backend, create, scene};
+use cloth_conformance::{Backend, create, create_tuned, scene};
 use cloth_core::scene::{ClothSpec, Corner, Orientation, Pin, Substeps, TimeSpec};
-use cloth_core::tiling::Tiling;
 use cloth_core::{ClothState, CpuSimulator, CpuSimulatorF64, Effect, Scene, Simulator};
+use cloth_gpu::{GpuTuning, Tiling};
 
 // ---------------------------------------------------------------------------------------------
 // Tolerances.
@@ -358,8 +358,8 @@ fn an_absent_effect_equals_zero_strength(backend: &Backend) {
 /// Bit for bit the f32 reference (where no multiply-adds are fused: see EXPECTED_DIFFERENCES),
 /// with semi-implicit Euler's tiled kernel off and on (`Tiling`; the GPU backends' default is off
 /// on a CPU implementation such as lavapipe, on on a GPU for small grids). The second grid spans
-/// several output blocks of the tiled kernel (`cloth_core::tiling`) each way and vertex blocks of
-/// the one-substep kernel (`cloth_core::layout::block_width`) both ways, with vertices two or more
+/// several output blocks of the tiled kernel (`cloth_gpu::geometry`) each way and vertex blocks of
+/// the one-substep kernel (`GpuTuning::block_width`) both ways, with vertices two or more
 /// from every edge (no edge checks) and nearer, is no multiple of either block, and lands on the
 /// sphere (contact and friction at the seams); its 41 substeps a frame leave a remainder for the
 /// one-substep kernel.
@@ -378,8 +378,8 @@ fn bit_exact_with_the_f32_reference(backend: &Backend) {
             assert!(expected > 0.0, "{name}: the cloth should have reached the sphere");
         }
         for tiling in [Tiling::Off, Tiling::On] {
-            let Some(mut sim) = create(backend, &scene) else { return };
-            sim.set_tiling(tiling).unwrap();
+            let tuning = GpuTuning { tiling, ..GpuTuning::default() };
+            let Some(mut sim) = create_tuned(backend, &scene, &tuning) else { return };
             sim.advance(frames).unwrap();
             let state = sim.read_state().unwrap();
             let penetration = sim.diagnostics().unwrap().max_penetration_m;
@@ -405,8 +405,10 @@ fn tiled_and_one_substep_euler_agree(backend: &Backend) {
     for (name, scene, frames) in cases {
         let mut states = Vec::new();
         for tiling in [Tiling::Off, Tiling::On] {
-            let Some(mut sim) = create(backend, &scene) else { return };
-            if sim.set_tiling(tiling).unwrap() == 1 && tiling == Tiling::On {
+            let tuning = GpuTuning { tiling, ..GpuTuning::default() };
+            let Some(sim) = create_tuned(backend, &scene, &tuning) else { return };
+            let mut sim = sim;
+            if sim.fused_substeps() == 1 && tiling == Tiling::On {
                 assert!(backend.name.starts_with("cpu"), "{name}: {} runs no tiled kernel", backend.name);
                 return;
             }
@@ -434,34 +436,98 @@ fn scene_start(scene: &Scene) -> ClothState {
 
 /// The GPU backends choose the tiled kernel as `Tiling` says: by default on a GPU for a small grid
 /// (not on a CPU implementation, where it is slower), whenever asked to where the device can run
-/// it, never for the other integrators; untiled, semi-implicit Euler runs on the packed state.
+/// it, never for the other integrators; untiled, semi-implicit Euler runs on the packed state
+/// unless the tuning turns it off.
 #[test]
 fn gpu_backends_fuse_euler_substeps_as_asked() {
     let _gpu = cloth_conformance::gpu_lock();
-    let tuned =
-        ["CLOTH_FUSED_SUBSTEPS", "CLOTH_TILE", "CLOTH_WORKGROUP_SIZE"].iter().any(|v| std::env::var_os(v).is_some());
+    let tuned = |tiling, packed_state| GpuTuning { tiling, packed_state, ..GpuTuning::default() };
     for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
         let mut scene = scene("drape.ron");
-        let Some(mut sim) = create(backend, &scene) else { return };
-        let cpu_device = sim.adapter_name().contains("Cpu");
-        if !tuned {
-            let expected = if cpu_device { 1 } else { 2 };
-            assert_eq!(sim.fused_substeps(), expected, "{}: Euler's substeps per dispatch by default", backend.name);
-            // Every device we run on (lavapipe: 32 KiB of workgroup memory) fits a default tile.
-            assert!(sim.set_tiling(Tiling::On).unwrap() > 1, "{}: Euler runs untiled when asked to tile", backend.name);
-        }
-        if sim.fused_substeps() > 1 {
-            assert_eq!(sim.substep_state_bytes(), Some(32), "{}: the tiled kernel's state", backend.name);
-        }
-        assert_eq!(sim.set_tiling(Tiling::Off).unwrap(), 1, "{}: tiling off", backend.name);
-        // Untiled, Euler's substeps pass each other the packed state, unless the knob says not to.
-        let packed = std::env::var("CLOTH_PACKED_STATE").map_or(true, |v| v.trim() != "0");
-        let expected = if packed { 24 } else { 32 };
-        assert_eq!(sim.substep_state_bytes(), Some(expected), "{}: untiled Euler's state", backend.name);
+        let Some(sim) = create(backend, &scene) else { return };
+        let expected = if sim.adapter_name().contains("Cpu") { 1 } else { 2 };
+        assert_eq!(sim.fused_substeps(), expected, "{}: Euler's substeps per dispatch by default", backend.name);
+        // Every device we run on (lavapipe: 32 KiB of workgroup memory) fits a default tile.
+        let sim = create_tuned(backend, &scene, &tuned(Tiling::On, true)).unwrap();
+        assert!(sim.fused_substeps() > 1, "{}: Euler runs untiled when asked to tile", backend.name);
+        assert_eq!(sim.substep_state_bytes(), Some(32), "{}: the tiled kernel's state", backend.name);
+        let sim = create_tuned(backend, &scene, &tuned(Tiling::Off, true)).unwrap();
+        assert_eq!(sim.fused_substeps(), 1, "{}: tiling off", backend.name);
+        assert_eq!(sim.substep_state_bytes(), Some(24), "{}: untiled Euler's state", backend.name);
+        let sim = create_tuned(backend, &scene, &tuned(Tiling::Off, false)).unwrap();
+        assert_eq!(sim.substep_state_bytes(), Some(32), "{}: untiled Euler's state, unpacked", backend.name);
         scene.integrator = cloth_core::Integrator::VelocityVerlet;
-        let Some(mut sim) = create(backend, &scene) else { return };
-        assert_eq!(sim.set_tiling(Tiling::On).unwrap(), 1, "{}: Verlet's substeps per dispatch", backend.name);
+        let sim = create_tuned(backend, &scene, &tuned(Tiling::On, true)).unwrap();
+        assert_eq!(sim.fused_substeps(), 1, "{}: Verlet's substeps per dispatch", backend.name);
         assert_eq!(sim.substep_state_bytes(), Some(32), "{}: Verlet's state", backend.name);
+    }
+}
+
+/// Every tuning lays the same arithmetic out differently, so each gives the default's results,
+/// bit for bit: workgroups of 64 and 1024 invocations, blocks of 16 and rows, the unpacked state,
+/// the alternating block order, a smaller tile. On semi-implicit Euler (which every knob
+/// touches) and XPBD (the workgroup size), with contact, on a grid of partial blocks.
+#[test]
+fn every_gpu_tuning_gives_the_same_results() {
+    let _gpu = cloth_conformance::gpu_lock();
+    let small_tile = cloth_gpu::TileConfig { width: 16, height: 16, substeps: 2 };
+    let tunings = [
+        GpuTuning { workgroup_size: 64, block_width: 16, ..GpuTuning::default() },
+        GpuTuning { workgroup_size: 1024, block_width: 0, ..GpuTuning::default() },
+        GpuTuning { packed_state: false, ..GpuTuning::default() },
+        GpuTuning { block_order: cloth_gpu::BlockOrder::Alternating, ..GpuTuning::default() },
+        GpuTuning { tiling: Tiling::On, tile: Some(small_tile), ..GpuTuning::default() },
+    ];
+    let mut drape = with_grid(scene("drape.ron"), [70, 37]);
+    drape.cloth.mass = cloth_core::scene::Mass::PerVertex(0.01);
+    drape.time.substeps = Substeps::Fixed(21);
+    let mut xpbd = with_grid(scene("drape.ron"), [20, 17]);
+    xpbd.integrator = cloth_core::Integrator::Xpbd;
+    for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
+        for (name, scene, frames) in [("Euler drape 70x37", &drape, 14), ("XPBD drape 20x17", &xpbd, 10)] {
+            let Some(mut sim) = create(backend, scene) else { return };
+            sim.advance(frames).unwrap();
+            let expected = sim.read_state().unwrap();
+            assert!(sim.diagnostics().unwrap().max_penetration_m > 0.0, "{name}: the cloth reaches the sphere");
+            for tuning in &tunings {
+                let mut tuned = create_tuned(backend, scene, tuning).unwrap();
+                tuned.advance(frames).unwrap();
+                let state = tuned.read_state().unwrap();
+                let d = max_difference(&state, &expected);
+                let same = state.positions == expected.positions && state.velocities == expected.velocities;
+                assert!(same, "{name} on {} with {tuning:?}: differs from the default by {d} m", backend.name);
+            }
+        }
+    }
+}
+
+/// A tuning value that is wrong, or that the device cannot run, is refused at creation, naming
+/// the field.
+#[test]
+fn a_wrong_gpu_tuning_is_refused_naming_the_field() {
+    let _gpu = cloth_conformance::gpu_lock();
+    let scene = with_grid(scene("drape.ron"), [8, 8]);
+    let huge_tile = cloth_gpu::TileConfig { width: 32, height: 32, substeps: 2 };
+    let cases = [
+        (GpuTuning { workgroup_size: 48, ..GpuTuning::default() }, "GpuTuning::workgroup_size"),
+        (GpuTuning { block_width: 512, ..GpuTuning::default() }, "GpuTuning::block_width"),
+        (
+            GpuTuning { tile: Some(cloth_gpu::TileConfig { substeps: 9, ..huge_tile }), ..GpuTuning::default() },
+            "GpuTuning::tile",
+        ),
+        (GpuTuning { adapter: Some("no such adapter".into()), ..GpuTuning::default() }, "no such adapter"),
+    ];
+    for backend in [&cloth_conformance::WGPU, &cloth_conformance::VULKANO] {
+        if create(backend, &scene).is_none() {
+            return;
+        }
+        for (tuning, named) in &cases {
+            let message = match (backend.tuned)(&scene, tuning) {
+                Ok(_) => panic!("{}: {tuning:?} was accepted", backend.name),
+                Err(e) => e.to_string(),
+            };
+            assert!(message.contains(named), "{}: the refusal of {tuning:?} names {named}: {message}", backend.name);
+        }
     }
 }
 

@@ -249,7 +249,7 @@ fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> 
     if integrator == Integrator::SemiImplicitEuler {
         // The tiled kernel that fuses Euler substeps (cloth_core::tiling), at the default tile.
         let (source, entry) = match language {
-            Language::Wgsl => (cloth_wgpu::tiled_shader_source(&cloth_core::tiling::DEFAULT_TILE), "substeps"),
+            Language::Wgsl => (cloth_wgpu::tiled_shader_source(&cloth_gpu::geometry::DEFAULT_TILES[0]), "substeps"),
             Language::Glsl => (glsl_source("cloth_step_tiled.comp"), "main"),
         };
         all.push((format!("{language:?} tiled Euler"), pipeline_work(language, &source, entry, effects, None)));

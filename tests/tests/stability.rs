@@ -474,20 +474,14 @@ stability_suite! {
 fn the_largest_grid_runs_and_the_next_is_refused() {
     let _gpu = cloth_conformance::gpu_lock();
     use cloth_core::SimError;
-    use cloth_core::layout::largest_square_grid;
+    use cloth_gpu::GpuBackend;
+    use cloth_gpu::memory::largest_square_grid;
+    let tuning = cloth_gpu::GpuTuning::default();
     let limits: [(&Backend, Option<u64>); 2] = [
-        (
-            &cloth_conformance::WGPU,
-            cloth_wgpu::GpuContext::new(&cloth_wgpu::AdapterChoice::from_env()).ok().map(|c| {
-                let l = c.device.limits();
-                l.max_storage_buffer_binding_size.min(l.max_buffer_size)
-            }),
-        ),
+        (&cloth_conformance::WGPU, cloth_wgpu::WgpuBackend::open(&tuning).ok().map(|b| b.limits().max_storage_binding)),
         (
             &cloth_conformance::VULKANO,
-            cloth_vulkano::VulkanContext::new(None)
-                .ok()
-                .map(|c| c.device.physical_device().properties().max_storage_buffer_range as u64),
+            cloth_vulkano::VulkanoBackend::open(&tuning).ok().map(|b| b.limits().max_storage_binding),
         ),
     ];
     for (backend, limit) in limits {
@@ -507,7 +501,7 @@ fn the_largest_grid_runs_and_the_next_is_refused() {
         assert_eq!(state.non_finite_count(), 0, "{}: {n}x{n}", backend.name);
         drop(sim);
         scene.cloth.resolution = [n + 1, n + 1];
-        match (backend.create)(&scene) {
+        match backend.create(&scene) {
             Err(e @ SimError::TooLarge { .. }) => {
                 let message = e.to_string();
                 eprintln!("{}: {n}x{n} ran; {}x{} refused: {message}", backend.name, n + 1, n + 1);

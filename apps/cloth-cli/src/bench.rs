@@ -31,16 +31,11 @@ pub struct BenchArgs {
     /// Frames timed per row (after one warm-up frame).
     #[arg(long, default_value_t = 10)]
     frames: u32,
-    /// Adapter name filter for GPU backends.
-    #[arg(long)]
-    adapter: Option<String>,
     /// Also write the rows to this CSV file.
     #[arg(long)]
     csv: Option<std::path::PathBuf>,
-    /// Whether semi-implicit Euler fuses substeps with the tiled kernel: `auto` (on GPUs, for
-    /// grids of up to 256²), `on` (wherever the device can), `off` (one dispatch per substep).
-    #[arg(long, value_enum, default_value_t = TilingArg::Auto)]
-    tiling: TilingArg,
+    #[command(flatten)]
+    tuning: crate::tuning::TuningArgs,
     /// Instead, print what each effect costs: the bare cloth, then each effect of the scene
     /// added in turn (ms per frame per backend, at each of `--grids`; the scene's own
     /// substeps unless `--substeps` is given).
@@ -49,27 +44,6 @@ pub struct BenchArgs {
     /// The scene of `--effects` (default: scenes/flag.ron, which has every effect).
     #[arg(long, requires = "effects")]
     scene: Option<std::path::PathBuf>,
-}
-
-/// `--tiling`: [`cloth_core::tiling::Tiling`] on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum TilingArg {
-    /// On GPUs, for grids of up to 256² (the default).
-    Auto,
-    /// Wherever the device can run the tiled kernel.
-    On,
-    /// One dispatch per substep.
-    Off,
-}
-
-impl From<TilingArg> for cloth_core::tiling::Tiling {
-    fn from(arg: TilingArg) -> Self {
-        match arg {
-            TilingArg::Auto => Self::Auto,
-            TilingArg::On => Self::On,
-            TilingArg::Off => Self::Off,
-        }
-    }
 }
 
 /// The default scene of `--effects`: every effect at once (a copy of `scenes/flag.ron`).
@@ -96,7 +70,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     // The ceiling: the device's copy bandwidth (measured through wgpu, on the adapter the GPU
     // backends use), at the least a substep must move per vertex.
     let bandwidth = if chosen.iter().any(|b| !b.name.starts_with("cpu")) {
-        match backends::copy_bandwidth(args.adapter.as_deref()) {
+        match backends::copy_bandwidth(args.tuning.adapter.as_deref()) {
             Ok(b) => {
                 println!(
                     "device copy bandwidth: {:.3} TB/s ({:.3} by a vec4 copy kernel, {:.3} by the copy command; {} \
@@ -146,14 +120,14 @@ pub fn run(args: BenchArgs) -> Result<()> {
         ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    let tuning = args.tuning.tuning();
     let mut rows: Vec<ThroughputRow> = Vec::new();
     let mut adapters: Vec<String> = Vec::new();
     'backends: for backend in &chosen {
         for &n in &args.grids {
             for &rule in &rules {
                 bar.set_message(format!("{} {n}² {rule}", backend.name));
-                let result =
-                    throughput::measure(backend, args.adapter.as_deref(), n, rule, args.frames, args.tiling.into());
+                let result = throughput::measure(backend, &tuning, n, rule, args.frames);
                 bar.inc(1);
                 let row = match result {
                     Ok(row) => row,
@@ -204,12 +178,12 @@ pub fn run(args: BenchArgs) -> Result<()> {
     println!(
         "fused: substeps per dispatch (the tiled Euler kernel fuses several); state: bytes a vertex the substeps hand each \
          other (24: semi-implicit Euler's packed state, 32: two vec4s; on the packed state the substeps take the grid's \
-         blocks forward and backward by turns where a substep moves {} to {} MB, CLOTH_ALTERNATE_ORDER); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
+         blocks forward and backward by turns where a substep moves {} to {} MB, --block-order); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
          of the work; Gvs/s: 1e9 vertex-substeps per second (from the GPU time where there is one); ceiling: that \
          throughput times {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes over the copy bandwidth; sub/w: submissions and host \
          waits per frame (the wait that ends the measurement included).",
-        cloth_core::layout::ALTERNATE_ORDER_MIN_SUBSTEP_BYTES / 1_000_000,
-        cloth_core::layout::ALTERNATE_ORDER_MAX_SUBSTEP_BYTES / 1_000_000
+        cloth_gpu::geometry::ALTERNATE_ORDER_MIN_SUBSTEP_BYTES / 1_000_000,
+        cloth_gpu::geometry::ALTERNATE_ORDER_MAX_SUBSTEP_BYTES / 1_000_000
     );
     if let Some(path) = &args.csv {
         let b = bandwidth.as_ref().map(|b| b.bytes_per_s);
@@ -280,7 +254,7 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
             );
             bar.set_message(format!("{} {nx}x{ny}", backend.name));
             let breakdown =
-                match effect_cost::measure(&scene, backend, args.adapter.as_deref(), args.frames, |done, _| {
+                match effect_cost::measure(&scene, backend, &args.tuning.tuning(), args.frames, |done, _| {
                     bar.set_position(done as u64)
                 }) {
                     Ok(rows) => rows,

@@ -9,6 +9,7 @@ mod bench;
 mod render;
 mod report;
 mod study;
+mod tuning;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -16,8 +17,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use cloth_backends as backends;
-use cloth_core::layout::MemoryEstimate;
 use cloth_core::{ClothModel, Energy, Scene, Substeps, stability};
+use cloth_gpu::memory::MemoryEstimate;
 use indicatif::{ProgressBar, ProgressStyle};
 
 #[derive(Parser)]
@@ -64,10 +65,8 @@ struct RunArgs {
     /// Backend to run on (see `cloth backends`).
     #[arg(long, default_value = "cpu")]
     backend: String,
-    /// GPU backends: use the adapter whose name contains this text (default: the best one;
-    /// the CLOTH_ADAPTER environment variable does the same).
-    #[arg(long)]
-    adapter: Option<String>,
+    #[command(flatten)]
+    tuning: tuning::TuningArgs,
     /// Frames to simulate (default: the scene's `time.frames`).
     #[arg(long)]
     frames: Option<u32>,
@@ -177,7 +176,7 @@ fn run(args: RunArgs) -> Result<()> {
     let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
     let backend = backends::find(&args.backend).map_err(anyhow::Error::msg)?;
     let frames = args.frames.unwrap_or(scene.time.frames);
-    let mut sim = (backend.create)(&scene, args.adapter.as_deref())
+    let mut sim = (backend.create)(&scene, &args.tuning.tuning())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;
 
     let progress = if args.json || frames < 30 { ProgressBar::hidden() } else { ProgressBar::new(frames as u64) };

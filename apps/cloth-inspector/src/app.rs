@@ -5,7 +5,8 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use cloth_core::{ClothModel, ClothState, CpuSimulator, Energy, Problem, Scene, SimError, Simulator, SpringKind};
-use cloth_wgpu::{GpuContext, WgpuSimulator};
+use cloth_gpu::GpuTuning;
+use cloth_wgpu::{GpuContext, WgpuBackend, WgpuSimulator};
 use eframe::egui;
 
 use crate::commands::Command;
@@ -94,6 +95,9 @@ pub struct Runtime {
     allow_close: bool,
     study: panels::study::StudyPanel,
     effect_costs: panels::effect_costs::EffectCostsPanel,
+    /// How the GPU backends lay their work out, and the draft the tuning panel edits.
+    tuning: GpuTuning,
+    tuning_draft: GpuTuning,
 }
 
 /// The inspector.
@@ -179,13 +183,15 @@ impl InspectorApp {
                 allow_close: false,
                 study: Default::default(),
                 effect_costs: Default::default(),
+                tuning: GpuTuning::default(),
+                tuning_draft: GpuTuning::default(),
             },
             state,
         };
         app.rebuild();
         if options.measure_effects {
             let backend = app.state.backend.clone();
-            app.runtime.effect_costs.start(&app.state.scene, &backend);
+            app.runtime.effect_costs.start(&app.state.scene, &backend, &app.runtime.tuning);
         }
         app
     }
@@ -202,11 +208,12 @@ impl InspectorApp {
                 adapter_description: format!("{} (eframe's device)", rs.adapter.get_info().name),
                 device_type: rs.adapter.get_info().device_type,
             };
-            return Ok(Sim::Shared(Box::new(WgpuSimulator::on_device(scene, context)?)));
+            let sim = WgpuSimulator::on_backend(scene, WgpuBackend::on(context), &self.runtime.tuning)?;
+            return Ok(Sim::Shared(Box::new(sim)));
         }
         let backend =
             cloth_backends::find(name).map_err(|reason| SimError::Unavailable { backend: "inspector", reason })?;
-        Ok(Sim::Boxed((backend.create)(scene, None)?))
+        Ok(Sim::Boxed((backend.create)(scene, &self.runtime.tuning)?))
     }
 
     /// (Re)creates the simulator of the current backend from the scene's initial state. Falls
@@ -234,8 +241,8 @@ impl InspectorApp {
     }
 
     /// Hands the running cloth to another backend: read its state, start the new backend, write
-    /// the state into it. The motion continues without a jump.
-    pub fn switch_backend(&mut self, name: &str) {
+    /// the state into it. The motion continues without a jump. Returns whether it switched.
+    pub fn switch_backend(&mut self, name: &str) -> bool {
         let state =
             self.runtime.sim.as_mut().and_then(|s| s.get().read_state().ok()).or(self.runtime.host_state.clone());
         match self.create(name) {
@@ -244,7 +251,7 @@ impl InspectorApp {
                     && let Err(e) = hand_over(s, sim.get())
                 {
                     self.runtime.notices.push(format!("could not hand the state to {name}: {e}"));
-                    return;
+                    return false;
                 }
                 self.state.backend = name.to_string();
                 if let Some(s) = &state {
@@ -252,16 +259,29 @@ impl InspectorApp {
                 }
                 self.runtime.host_state = state;
                 self.runtime.sim = Some(sim);
+                true
             }
-            Err(e) => self.runtime.notices.push(format!("cannot switch to {name}: {e}")),
+            Err(e) => {
+                self.runtime.notices.push(format!("cannot switch to {name}: {e}"));
+                false
+            }
         }
     }
 
     fn apply(&mut self, command: Command) {
         match command {
             Command::Reset => self.rebuild(),
-            Command::SwitchBackend(name) => self.switch_backend(&name),
+            Command::SwitchBackend(name) => {
+                self.switch_backend(&name);
+            }
             Command::StepOnce => self.advance(1),
+            Command::ApplyTuning(tuning) => {
+                let previous = std::mem::replace(&mut self.runtime.tuning, tuning);
+                let name = self.state.backend.clone();
+                if !self.switch_backend(&name) {
+                    self.runtime.tuning = previous;
+                }
+            }
             Command::OpenScene(path) => match Scene::load(&path) {
                 Ok(scene) => {
                     self.state.scene = scene.clone();
@@ -614,6 +634,11 @@ impl eframe::App for InspectorApp {
                 egui::CollapsingHeader::new("Backend").default_open(true).show(ui, |ui| {
                     panels::backend::show(ui, &self.runtime.backends, &current, &adapter, ctx_panel.commands)
                 });
+                if current == "wgpu" || current == "vulkano" {
+                    let (draft, running) = (&mut self.runtime.tuning_draft, &self.runtime.tuning);
+                    egui::CollapsingHeader::new("GPU tuning")
+                        .show(ui, |ui| panels::tuning::show(ui, draft, running, ctx_panel.commands));
+                }
                 egui::CollapsingHeader::new("Time").default_open(true).show(ui, |ui| {
                     panels::time::show(ui, &mut ctx_panel, &mut self.state.playing, &mut self.state.speed)
                 });
@@ -648,10 +673,10 @@ impl eframe::App for InspectorApp {
                 if let Some(sim) = self.runtime.sim.as_ref() {
                     egui::CollapsingHeader::new("Cost of each effect")
                         .default_open(true)
-                        .show(ui, |ui| self.runtime.effect_costs.show(ui, sim.scene(), backend));
+                        .show(ui, |ui| self.runtime.effect_costs.show(ui, sim.scene(), backend, &self.runtime.tuning));
                 }
                 egui::CollapsingHeader::new("Accuracy study")
-                    .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene, backend));
+                    .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene, backend, &self.runtime.tuning));
             });
         });
         if !self.runtime.notices.is_empty() {
@@ -714,7 +739,7 @@ mod tests {
         for name in ["wgpu", "vulkano", "cpu", "cpu-f64", "cpu"] {
             let state = from.read_state().unwrap();
             let backend = cloth_backends::find(name).unwrap();
-            let mut to = match (backend.create)(&scene, None) {
+            let mut to = match (backend.create)(&scene, &GpuTuning::default()) {
                 Ok(sim) => sim,
                 Err(SimError::Unavailable { reason, .. }) if std::env::var_os("CI").is_none() => {
                     eprintln!("SKIPPED handover to {name}: {reason}");

@@ -15,4 +15,6 @@ pub enum Command {
     SaveScene(PathBuf),
     /// Advance exactly one frame (while paused).
     StepOnce,
+    /// Hand the running cloth to a simulator of the same backend with this GPU tuning.
+    ApplyTuning(cloth_gpu::GpuTuning),
 }

@@ -4,13 +4,15 @@
 //! buffer (no read-back); other backends' states are uploaded once per frame.
 
 use bytemuck::{Pod, Zeroable};
-use cloth_core::layout::GpuSphere;
-use cloth_core::{ClothModel, ClothState};
+use cloth_core::{ClothModel, ClothState, Scene};
+use cloth_gpu::layout::GpuSphere;
 use eframe::egui_wgpu::RenderState;
 use eframe::wgpu;
 use wgpu::util::DeviceExt;
 
-const SHADER: &str = include_str!("../../../shaders/wgsl/render.wgsl");
+/// The view's WGSL: the shared structs (`layout.wgsl`), then `render.wgsl`.
+pub const RENDER_SHADER: &str =
+    concat!(include_str!("../../../shaders/wgsl/layout.wgsl"), include_str!("../../../shaders/wgsl/render.wgsl"));
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// egui shows native textures of this format and takes their values as sRGB-encoded, so the
 /// shaders' colours are written as they are.
@@ -24,6 +26,7 @@ struct CameraUniform {
     light: [f32; 4],
 }
 
+/// `ClothInfo` of `render.wgsl` (checked against it by a test).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct ClothInfo {
@@ -32,11 +35,51 @@ struct ClothInfo {
     color_mode: u32,
     strain_kind: u32,
     sphere_count: u32,
-    _pad: [u32; 3],
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     rest_du: f32,
     rest_dv: f32,
     speed_scale: f32,
     strain_scale: f32,
+}
+
+impl ClothInfo {
+    /// The cloth's grid, spacing and spheres for `color_mode`.
+    fn new(scene: &Scene, color_mode: ColorMode) -> Self {
+        let [nx, ny] = scene.cloth.resolution;
+        let [du, dv] = scene.cloth.spacing();
+        Self {
+            nx,
+            ny,
+            color_mode: match color_mode {
+                ColorMode::Plain => 0,
+                ColorMode::Strain(_) => 1,
+                ColorMode::Contact => 2,
+                ColorMode::Speed => 3,
+            },
+            strain_kind: match color_mode {
+                ColorMode::Strain(kind) => kind as u32,
+                _ => 0,
+            },
+            sphere_count: scene.spheres.len() as u32,
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
+            rest_du: du as f32,
+            rest_dv: dv as f32,
+            speed_scale: 3.0,
+            strain_scale: 0.05,
+        }
+    }
+}
+
+/// The spheres as the view's shaders read them: every sphere of the scene, where it is at time
+/// `t_s` (s).
+pub fn spheres_at(scene: &Scene, t_s: f64) -> Vec<GpuSphere> {
+    (scene.spheres.iter().enumerate())
+        .map(|(i, s)| GpuSphere { center: scene.sphere_center_at(i, t_s).map(|x| x as f32), ..GpuSphere::from_spec(s) })
+        .collect()
 }
 
 #[repr(C)]
@@ -121,6 +164,7 @@ pub struct ViewRenderer {
     lines: wgpu::RenderPipeline,
     camera: wgpu::Buffer,
     cloth_info: wgpu::Buffer,
+    /// The spheres, grown to hold every sphere of the scene.
     spheres: wgpu::Buffer,
     sphere_mesh: (wgpu::Buffer, wgpu::Buffer, u32),
     ground: (wgpu::Buffer, u32),
@@ -170,7 +214,7 @@ impl ViewRenderer {
         let device = &rs.device;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("render.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+            source: wgpu::ShaderSource::Wgsl(RENDER_SHADER.into()),
         });
         let uniform = |binding| wgpu::BindGroupLayoutEntry {
             binding,
@@ -306,7 +350,11 @@ impl ViewRenderer {
             lines,
             camera: buffer("view camera", size_of::<CameraUniform>() as u64, copy_uniform),
             cloth_info: buffer("view cloth info", size_of::<ClothInfo>() as u64, copy_uniform),
-            spheres: buffer("view spheres", 32 * 16, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST),
+            spheres: buffer(
+                "view spheres",
+                size_of::<GpuSphere>() as u64,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            ),
             sphere_mesh,
             ground,
             mesh: None,
@@ -425,38 +473,21 @@ impl ViewRenderer {
             light: [0.35, 0.85, 0.4, 0.0],
         };
         queue.write_buffer(&self.camera, 0, bytemuck::bytes_of(&camera));
-        let [nx, ny] = scene.cloth.resolution;
-        let info = ClothInfo {
-            nx,
-            ny,
-            color_mode: match inputs.color_mode {
-                ColorMode::Plain => 0,
-                ColorMode::Strain(_) => 1,
-                ColorMode::Contact => 2,
-                ColorMode::Speed => 3,
-            },
-            strain_kind: match inputs.color_mode {
-                ColorMode::Strain(kind) => kind as u32,
-                _ => 0,
-            },
-            sphere_count: scene.spheres.len().min(16) as u32,
-            _pad: [0; 3],
-            rest_du: scene.cloth.spacing()[0] as f32,
-            rest_dv: scene.cloth.spacing()[1] as f32,
-            speed_scale: 3.0,
-            strain_scale: 0.05,
-        };
+        let info = ClothInfo::new(scene, inputs.color_mode);
         queue.write_buffer(&self.cloth_info, 0, bytemuck::bytes_of(&info));
         // Moving spheres and pins are drawn where they are at the state's time.
         let centers: Vec<[f64; 3]> =
             (0..scene.spheres.len()).map(|i| scene.sphere_center_at(i, inputs.time_s)).collect();
-        let spheres: Vec<GpuSphere> = scene
-            .spheres
-            .iter()
-            .zip(&centers)
-            .take(16)
-            .map(|(s, c)| GpuSphere { center: c.map(|x| x as f32), ..GpuSphere::from_spec(s) })
-            .collect();
+        let spheres = spheres_at(scene, inputs.time_s);
+        let bytes = std::mem::size_of_val(spheres.as_slice()) as u64;
+        if bytes > self.spheres.size() {
+            self.spheres = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("view spheres"),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+        }
         if !spheres.is_empty() {
             queue.write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
         }
@@ -559,5 +590,181 @@ impl ViewRenderer {
         }
         queue.submit([encoder.finish()]);
         target.texture_id
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cloth_core::{CpuSimulator, Simulator};
+
+    /// How a vertex touches the spheres, as the contact colouring shows it.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    enum ContactState {
+        /// On no sphere.
+        Free,
+        /// On a sphere (within 0.2% of its radius), moving along it at under 1 mm/s.
+        Sticking,
+        /// On a sphere, moving along it faster.
+        Sliding,
+    }
+
+    /// The contact state of every vertex of `state`, in `f32` with `render.wgsl`'s operations (the
+    /// last sphere a vertex touches decides, as there).
+    fn contact_states(spheres: &[GpuSphere], state: &ClothState) -> Vec<ContactState> {
+        let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        (state.positions.iter().zip(&state.velocities))
+            .map(|(x, v)| {
+                let mut contact = ContactState::Free;
+                for s in spheres {
+                    let offset = [x[0] - s.center[0], x[1] - s.center[1], x[2] - s.center[2]];
+                    let d = dot(offset, offset).sqrt();
+                    if d < s.radius * 1.002 {
+                        let n = offset.map(|c| c / d.max(1e-9));
+                        let vn = dot(*v, n);
+                        let v_t = [v[0] - n[0] * vn, v[1] - n[1] * vn, v[2] - n[2] * vn];
+                        let sticking = dot(v_t, v_t).sqrt() < 1e-3;
+                        contact = if sticking { ContactState::Sticking } else { ContactState::Sliding };
+                    }
+                }
+                contact
+            })
+            .collect()
+    }
+
+    /// `(member name, offset)` and size of a struct of the view's WGSL, by naga's reflection.
+    fn wgsl_struct(name: &str) -> (Vec<(String, usize)>, usize) {
+        let module = naga::front::wgsl::parse_str(RENDER_SHADER).expect("render.wgsl parses");
+        for (_, ty) in module.types.iter() {
+            if ty.name.as_deref() == Some(name)
+                && let naga::TypeInner::Struct { members, span } = &ty.inner
+            {
+                let fields = members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize)).collect();
+                return (fields, *span as usize);
+            }
+        }
+        panic!("no struct {name} in render.wgsl");
+    }
+
+    #[test]
+    fn the_view_shader_reads_the_structs_the_host_writes() {
+        let (fields, size) = wgsl_struct("ClothInfo");
+        assert_eq!(size, size_of::<ClothInfo>(), "ClothInfo");
+        let names = ["nx", "ny", "color_mode", "strain_kind", "sphere_count", "pad0", "pad1", "pad2"];
+        let names = names.iter().chain(&["rest_du", "rest_dv", "speed_scale", "strain_scale"]);
+        let expected: Vec<(String, usize)> = names.enumerate().map(|(k, n)| (n.to_string(), 4 * k)).collect();
+        assert_eq!(fields, expected, "ClothInfo: WGSL (left) against the Rust type's order of u32/f32 fields");
+        let (_, size) = wgsl_struct("Camera");
+        assert_eq!(size, size_of::<CameraUniform>(), "Camera");
+        let sphere = GpuSphere::layout();
+        let (fields, size) = wgsl_struct(sphere.shader_name);
+        assert_eq!(size, sphere.size, "Sphere");
+        let fields: Vec<(&str, usize)> = fields.iter().map(|(n, o)| (n.as_str(), *o)).collect();
+        assert_eq!(fields, sphere.fields, "Sphere: WGSL (left) against cloth_gpu::layout::GpuSphere (right)");
+    }
+
+    /// The contact colouring on the GPU (`render.wgsl`'s `vertex_color`, which `vs_cloth` draws)
+    /// agrees with the CPU's contact state on a cloth lying over two spheres: both spheres are
+    /// read where the simulation put them, whatever their number.
+    #[test]
+    fn contact_colours_on_two_spheres_agree_with_the_cpu() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/hard/two_spheres.ron");
+        let scene = Scene::load(std::path::Path::new(path)).unwrap();
+        let mut sim = CpuSimulator::new(&scene).unwrap();
+        sim.advance(scene.time.frames).unwrap();
+        let state = sim.read_state().unwrap();
+        let spheres = spheres_at(&scene, state.time_s);
+        let cpu = contact_states(&spheres, &state);
+        for (k, sphere) in spheres.iter().enumerate() {
+            let on = contact_states(std::slice::from_ref(sphere), &state);
+            assert!(on.iter().any(|c| *c != ContactState::Free), "sphere {k}: the test needs cloth resting on it");
+        }
+        let context = match cloth_wgpu::GpuContext::new(None) {
+            Ok(c) => c,
+            Err(e) if std::env::var_os("CI").is_none() => return eprintln!("SKIPPED: {e}"),
+            Err(e) => panic!("no wgpu adapter and CI is set: {e}"),
+        };
+        let gpu = gpu_vertex_colors(&context, &scene, &state, &spheres);
+        let palette = [(ContactState::Free, [0.55, 0.6, 0.75]), (ContactState::Sticking, [0.2, 0.8, 0.3])];
+        let palette = [palette[0], palette[1], (ContactState::Sliding, [0.95, 0.25, 0.15])];
+        let mismatches: Vec<(usize, ContactState, [f32; 4])> = (gpu.iter().zip(&cpu).enumerate())
+            .filter(|(_, (c, s))| {
+                let expected = palette.iter().find(|(p, _)| p == *s).map(|(_, rgb)| *rgb).unwrap();
+                (0..3).any(|k| (c[k] - expected[k]).abs() > 1e-6)
+            })
+            .map(|(i, (c, s))| (i, *s, *c))
+            .collect();
+        assert!(mismatches.is_empty(), "{} vertices coloured unlike the CPU's state: {mismatches:?}", mismatches.len());
+    }
+
+    /// Runs `cs_vertex_colors` of the view's shader on `state` in contact mode.
+    fn gpu_vertex_colors(
+        context: &cloth_wgpu::GpuContext,
+        scene: &Scene,
+        state: &ClothState,
+        spheres: &[GpuSphere],
+    ) -> Vec<[f32; 4]> {
+        let device = &context.device;
+        let init = |label: &str, contents: &[u8], usage| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let info = ClothInfo::new(scene, ColorMode::Contact);
+        let p: Vec<[f32; 4]> = state.positions.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect();
+        let v: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
+        let n = p.len() as u64;
+        let colors = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("colours"),
+            size: 16 * n,
+            usage: storage | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("colours read-back"),
+            size: 16 * n,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("render.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(RENDER_SHADER.into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("vertex colours"),
+            layout: None,
+            module: &module,
+            entry_point: Some("cs_vertex_colors"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let buffers = [
+            (1, init("info", bytemuck::bytes_of(&info), wgpu::BufferUsages::UNIFORM)),
+            (2, init("positions", bytemuck::cast_slice(&p), storage)),
+            (3, init("velocities", bytemuck::cast_slice(&v), storage)),
+            (4, init("spheres", bytemuck::cast_slice(spheres), storage)),
+        ];
+        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .map(|(b, buffer)| wgpu::BindGroupEntry { binding: *b, resource: buffer.as_entire_binding() })
+            .collect();
+        entries.push(wgpu::BindGroupEntry { binding: 5, resource: colors.as_entire_binding() });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vertex colours"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups((n as u32).div_ceil(64), 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&colors, 0, &staging, 0, 16 * n);
+        context.queue.submit([encoder.finish()]);
+        staging.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+        device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+        let view = staging.get_mapped_range(..).unwrap();
+        bytemuck::cast_slice::<u8, [f32; 4]>(&view).to_vec()
     }
 }

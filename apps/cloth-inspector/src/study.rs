@@ -38,7 +38,7 @@ const QUICK_SUBSTEPS: [u32; 3] = [8, 16, 32];
 
 /// Runs the quick study on a copy of `scene` (at most 12 x 12, 0.25 s) on `backend`, updating
 /// `progress`.
-pub fn quick_study(scene: &Scene, backend: &str, progress: &Mutex<StudyProgress>) {
+pub fn quick_study(scene: &Scene, backend: &str, tuning: &cloth_gpu::GpuTuning, progress: &Mutex<StudyProgress>) {
     let mut base = scene.clone();
     base.cloth.resolution = [base.cloth.resolution[0].min(12), base.cloth.resolution[1].min(12)];
     let frames = (0.25 / base.time.frame_dt).round().max(1.0) as u32;
@@ -74,7 +74,7 @@ pub fn quick_study(scene: &Scene, backend: &str, progress: &Mutex<StudyProgress>
     };
     for integrator in Integrator::ALL {
         for n in QUICK_SUBSTEPS {
-            let point = factory(&with(integrator, n), None).ok().and_then(|mut sim| {
+            let point = factory(&with(integrator, n), tuning).ok().and_then(|mut sim| {
                 let timed = sim.set_gpu_timing(true);
                 let start = Instant::now();
                 for _ in 0..frames {
@@ -108,10 +108,10 @@ pub fn quick_study(scene: &Scene, backend: &str, progress: &Mutex<StudyProgress>
 
 /// Starts the quick study on `backend` on a background thread; the returned progress fills as
 /// it runs.
-pub fn spawn_quick_study(scene: &Scene, backend: &str) -> Arc<Mutex<StudyProgress>> {
+pub fn spawn_quick_study(scene: &Scene, backend: &str, tuning: &cloth_gpu::GpuTuning) -> Arc<Mutex<StudyProgress>> {
     let progress = Arc::new(Mutex::new(StudyProgress::default()));
-    let (scene, backend, shared) = (scene.clone(), backend.to_string(), progress.clone());
-    std::thread::spawn(move || quick_study(&scene, &backend, &shared));
+    let (scene, backend, shared, tuning) = (scene.clone(), backend.to_string(), progress.clone(), tuning.clone());
+    std::thread::spawn(move || quick_study(&scene, &backend, &tuning, &shared));
     progress
 }
 
@@ -153,7 +153,7 @@ mod tests {
     fn quick_study_measures_every_integrator_and_higher_order_is_more_accurate() {
         let progress = Mutex::new(StudyProgress::default());
         let scene = Scene::load(&crate::panels::scene::scenes_dir().join("hanging.ron")).unwrap();
-        quick_study(&scene, "cpu", &progress);
+        quick_study(&scene, "cpu", &Default::default(), &progress);
         let p = progress.lock().unwrap();
         assert_eq!((p.done, p.total, p.error.clone()), (p.total, 13, None));
         let error = |series: &str| p.points.iter().find(|q| q.series == series).map(|q| q.rms_error_m).unwrap();

@@ -89,15 +89,15 @@ pub fn row_scene(scene: &Scene, effects: EffectSet) -> Scene {
     row
 }
 
-/// Times `frames` frames of each row of [`steps`] on `backend` (on the adapter whose name
-/// contains `adapter`, if given), calling `progress(done, total)` after each row.
+/// Times `frames` frames of each row of [`steps`] on `backend` (laid out as `tuning` says),
+/// calling `progress(done, total)` after each row.
 ///
 /// # Errors
 /// The first [`SimError`] of a row: the backend unavailable, the scene refused, a device error.
 pub fn measure(
     scene: &Scene,
     backend: &Backend,
-    adapter: Option<&str>,
+    tuning: &cloth_gpu::GpuTuning,
     frames: u32,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Breakdown, SimError> {
@@ -106,7 +106,7 @@ pub fn measure(
     let frames = frames.max(1);
     let mut rows: Vec<EffectCost> = Vec::with_capacity(steps.len());
     for (k, (added, effects)) in steps.iter().enumerate() {
-        let mut sim = (backend.create)(&row_scene(scene, *effects), adapter)?;
+        let mut sim = (backend.create)(&row_scene(scene, *effects), tuning)?;
         adapter_name = sim.adapter_name();
         // Warm-up: pipeline compilation and first-use allocations, then wait for it.
         sim.advance(1)?;
@@ -158,7 +158,7 @@ mod tests {
         scene.time.substeps = Substeps::Fixed(8);
         let cpu = crate::find("cpu").unwrap();
         let mut calls = 0;
-        let breakdown = measure(&scene, &cpu, None, 4, |done, total| {
+        let breakdown = measure(&scene, &cpu, &Default::default(), 4, |done, total| {
             calls += 1;
             assert!(done <= total);
         })

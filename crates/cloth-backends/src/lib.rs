@@ -9,9 +9,11 @@ pub mod effect_cost;
 pub mod throughput;
 
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
+use cloth_gpu::{GpuSimulator, GpuTuning};
 
-/// Creates a simulator for a scene, on the adapter whose name contains the given text if any.
-pub type Factory = fn(&Scene, Option<&str>) -> Result<Box<dyn Simulator>, SimError>;
+/// Creates a simulator for a scene; a GPU backend lays its work out as the tuning says and
+/// opens the adapter it names (the CPU backends have nothing to tune).
+pub type Factory = fn(&Scene, &GpuTuning) -> Result<Box<dyn Simulator>, SimError>;
 
 /// A backend the CLI can run.
 pub struct Backend {
@@ -25,25 +27,16 @@ pub struct Backend {
     pub adapters: fn() -> Result<Vec<String>, String>,
 }
 
-fn cpu<S: Simulator + 'static>(scene: &Scene, _adapter: Option<&str>) -> Result<Box<dyn Simulator>, SimError> {
+fn cpu<S: Simulator + 'static>(scene: &Scene, _tuning: &GpuTuning) -> Result<Box<dyn Simulator>, SimError> {
     Ok(Box::new(S::new(scene)?))
+}
+
+fn gpu<B: cloth_gpu::GpuBackend + 'static>(scene: &Scene, tuning: &GpuTuning) -> Result<Box<dyn Simulator>, SimError> {
+    Ok(Box::new(GpuSimulator::<B>::with_tuning(scene, tuning)?))
 }
 
 fn cpu_adapters() -> Result<Vec<String>, String> {
     Ok(vec![format!("CPU ({} threads)", std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1))])
-}
-
-fn wgpu(scene: &Scene, adapter: Option<&str>) -> Result<Box<dyn Simulator>, SimError> {
-    let choice = match adapter {
-        Some(name) => cloth_wgpu::AdapterChoice { name_contains: Some(name.to_string()) },
-        None => cloth_wgpu::AdapterChoice::from_env(),
-    };
-    Ok(Box::new(cloth_wgpu::WgpuSimulator::with_options(scene, &choice)?))
-}
-
-fn vulkano(scene: &Scene, adapter: Option<&str>) -> Result<Box<dyn Simulator>, SimError> {
-    let from_env = std::env::var("CLOTH_ADAPTER").ok().filter(|s| !s.is_empty());
-    Ok(Box::new(cloth_vulkano::VulkanoSimulator::with_adapter(scene, adapter.or(from_env.as_deref()))?))
 }
 
 /// Every backend compiled in, the default first.
@@ -64,13 +57,13 @@ pub fn all() -> Vec<Backend> {
         Backend {
             name: cloth_wgpu::BACKEND_NAME,
             description: "WGSL compute shaders through wgpu (Vulkan, Metal or DX12; lavapipe included)",
-            create: wgpu,
+            create: gpu::<cloth_wgpu::WgpuBackend>,
             adapters: cloth_wgpu::list_adapters,
         },
         Backend {
             name: cloth_vulkano::BACKEND_NAME,
             description: "GLSL compute shaders compiled to SPIR-V, through vulkano (Vulkan; lavapipe included)",
-            create: vulkano,
+            create: gpu::<cloth_vulkano::VulkanoBackend>,
             adapters: cloth_vulkano::list_devices,
         },
     ]
@@ -88,18 +81,4 @@ pub fn find(name: &str) -> Result<Backend, String> {
         .ok_or_else(|| format!("unknown backend '{name}': this build has {}", names.join(", ")))
 }
 
-pub use cloth_wgpu::CopyBandwidth;
-
-/// The device's copy bandwidth (see [`cloth_wgpu::copy_bandwidth`]): the memory ceiling of the
-/// GPU backends, measured through wgpu on the adapter whose name contains `adapter` (else the
-/// one `CLOTH_ADAPTER` names, else the best).
-///
-/// # Errors
-/// [`SimError::Unavailable`] without a matching adapter; [`SimError::Device`] when it fails.
-pub fn copy_bandwidth(adapter: Option<&str>) -> Result<CopyBandwidth, SimError> {
-    let choice = match adapter {
-        Some(name) => cloth_wgpu::AdapterChoice { name_contains: Some(name.to_string()) },
-        None => cloth_wgpu::AdapterChoice::from_env(),
-    };
-    cloth_wgpu::copy_bandwidth(&choice)
-}
+pub use cloth_wgpu::{CopyBandwidth, copy_bandwidth};

@@ -12,15 +12,15 @@ use crate::Backend;
 /// The bytes per vertex a force-based substep moves at least in the layout the backends share:
 /// read its position and velocity (two 16-byte `vec4`s) and write them (two more). Everything
 /// else (neighbours, parameters, springs) can come from caches. At a copy bandwidth of `B`
-/// bytes/s the ceiling is `B / 64` vertex-substeps per second: the ceiling issue 8 states its
-/// targets against. Semi-implicit Euler's packed state (`cloth_core::layout::PackedState`)
+/// bytes/s the ceiling is `B / 64` vertex-substeps per second. Semi-implicit Euler's packed state
+/// (`cloth_gpu::geometry`)
 /// moves 48 bytes (six floats in, six out: [`PACKED_BYTES_PER_VERTEX_SUBSTEP`]) in the substeps
 /// inside a submission, so it can pass this ceiling; the fraction is still computed against 64,
 /// so rows stay comparable.
 pub const MIN_BYTES_PER_VERTEX_SUBSTEP: f64 = 64.0;
 
 /// Bytes per vertex a substep on semi-implicit Euler's packed state moves: 24 read, 24 written.
-pub const PACKED_BYTES_PER_VERTEX_SUBSTEP: f64 = 2.0 * cloth_core::layout::PackedState::VERTEX_BYTES as f64;
+pub const PACKED_BYTES_PER_VERTEX_SUBSTEP: f64 = 2.0 * cloth_gpu::geometry::PACKED_VERTEX_BYTES as f64;
 
 /// The resolution-scaled step is `dt = SCALED_STEP_TIMES_N / n` s on an `n × n` grid: with the
 /// cloth's size and total mass fixed, a vertex's mass goes as `1/n²` and the stable step as `1/n`.
@@ -130,24 +130,22 @@ impl ThroughputRow {
 
 /// Measures one row: one warm-up frame (pipelines, first-use allocations), then `frames` frames
 /// each advanced by its own `advance(1)` (one submission, no wait), with GPU timing on where the
-/// backend has it, then one wait for the device. `tiling` chooses whether semi-implicit Euler
-/// fuses substeps with the tiled kernel ([`cloth_core::Simulator::set_tiling`]).
+/// backend has it, then one wait for the device. A GPU backend lays its work out as `tuning`
+/// says.
 ///
 /// # Errors
 /// What creating or running the simulator returns (e.g. [`SimError::Unavailable`] without an
 /// adapter, [`SimError::TooLarge`] for a grid the device cannot hold).
 pub fn measure(
     backend: &Backend,
-    adapter: Option<&str>,
+    tuning: &cloth_gpu::GpuTuning,
     n: u32,
     rule: StepRule,
     frames: u32,
-    tiling: cloth_core::tiling::Tiling,
 ) -> Result<ThroughputRow, SimError> {
     let scene = bench_scene(n, rule);
     let frames = frames.max(1);
-    let mut sim = (backend.create)(&scene, adapter)?;
-    sim.set_tiling(tiling)?;
+    let mut sim = (backend.create)(&scene, tuning)?;
     sim.advance(1)?;
     sim.diagnostics()?;
     let gpu_timed = sim.set_gpu_timing(true);
@@ -219,7 +217,7 @@ mod tests {
     #[test]
     fn a_cpu_row_counts_the_work_and_no_device_traffic() {
         let cpu = crate::find("cpu").unwrap();
-        let row = measure(&cpu, None, 16, StepRule::Fixed(4), 3, cloth_core::tiling::Tiling::Auto).unwrap();
+        let row = measure(&cpu, &Default::default(), 16, StepRule::Fixed(4), 3).unwrap();
         assert_eq!((row.grid, row.substeps, row.frames), (16, 4, 3));
         assert!(row.finite && row.gpu_ms_per_frame.is_none());
         assert_eq!((row.submissions_per_frame, row.host_waits_per_frame), (0.0, 0.0));

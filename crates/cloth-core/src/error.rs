@@ -102,6 +102,16 @@ pub enum SimError {
         /// What to do instead.
         fix: String,
     },
+    /// An option passed to a backend (e.g. a GPU tuning value) is invalid.
+    #[error("option {option} = {value} is invalid: {expected}")]
+    InvalidOption {
+        /// The option's name, as the type that holds it names its field.
+        option: &'static str,
+        /// The value given.
+        value: String,
+        /// What it must be.
+        expected: String,
+    },
     /// The scene does not fit on the device.
     #[error(
         "grid {nx}x{ny} needs {needed_bytes} bytes in one {resource}, but the device allows {limit_bytes}: use a smaller grid (the largest square one that fits is {largest_square}x{largest_square})"

@@ -1,7 +1,7 @@
 //! The cloth model built from a scene: grid, springs and per-vertex spring lists.
 //!
-//! This is the single source of truth both the CPU reference and the GPU layouts are built
-//! from (`layout::GpuBuffers::new` converts it to `f32` buffers).
+//! This is the single source of truth both the CPU reference and the GPU backends are built
+//! from (the GPU backends convert it to `f32` buffers).
 
 use crate::grid::Grid;
 use crate::scene::Scene;
@@ -100,6 +100,22 @@ impl ClothModel {
     /// Number of springs of each kind, `[structural, shear, bend]`.
     pub fn spring_counts(&self) -> [usize; 3] {
         springs::count_by_kind(&self.springs)
+    }
+
+    /// Bytes of host memory building and simulating `scene` takes, from the closed-form spring
+    /// counts, without building anything (so that validation can refuse a huge grid before
+    /// allocating): per vertex its `f64` position and pin flag, its list offset and four `f64`
+    /// state vectors (the reference's current and next positions and velocities); per spring
+    /// 32 bytes, and two list entries of 24. Saturates instead of overflowing.
+    pub fn estimated_host_bytes(scene: &Scene) -> u64 {
+        let [nx, ny] = scene.cloth.resolution.map(u128::from);
+        let springs: u128 = SpringKind::ALL
+            .iter()
+            .filter(|k| scene.effects.contains(k.effect()))
+            .map(|k| k.count_in_grid(nx as u64, ny as u64) as u128)
+            .sum();
+        let bytes = nx * ny * (24 + 1 + 4 + 4 * 24) + springs * (32 + 2 * 24);
+        u64::try_from(bytes).unwrap_or(u64::MAX)
     }
 }
 

@@ -2,7 +2,9 @@
 //! goes, and how fast the gusting wind blows. Generic over the precision, with the operations in
 //! the order the shaders use (`shaders/wgsl/common.wgsl`, `shaders/glsl/forces.glsl`).
 
+use crate::effects::Effect;
 use crate::real::{Real, Vec3};
+use crate::scene::Motion;
 
 /// A [`crate::scene::Motion`] in precision `R`: steady velocity (m/s), amplitude (m) and angular
 /// frequency `ω = 2π f` (rad/s).
@@ -18,7 +20,7 @@ pub struct MotionOf<R> {
 
 impl<R: Real> MotionOf<R> {
     /// Converts a scene motion.
-    pub fn of(m: &crate::scene::Motion) -> Self {
+    pub fn of(m: &Motion) -> Self {
         Self {
             velocity: Vec3::from_f64(m.velocity),
             amplitude: Vec3::from_f64(m.amplitude),
@@ -40,6 +42,29 @@ impl<R: Real> MotionOf<R> {
 /// The wind velocity at time `t`, m/s: `velocity · (1 + gust_amplitude · sin(gust_omega · t))`.
 pub fn wind_velocity<R: Real>(velocity: Vec3<R>, gust_amplitude: R, gust_omega: R, t: R) -> Vec3<R> {
     velocity * (R::one() + gust_amplitude * (gust_omega * t).sin())
+}
+
+impl crate::scene::Scene {
+    /// Where sphere `index` is at simulated time `t_s` (s), m: `center + d(t)` of its
+    /// [`Motion`] when the scene has [`Effect::MovingSpheres`], else `center`. What renderers
+    /// draw; the solvers evaluate the same motion in their own precision.
+    pub fn sphere_center_at(&self, index: usize, t_s: f64) -> [f64; 3] {
+        let sphere = &self.spheres[index];
+        if !self.effects.contains(Effect::MovingSpheres) {
+            return sphere.center;
+        }
+        let d = MotionOf::<f64>::of(&sphere.motion).displacement(t_s).to_f64();
+        [sphere.center[0] + d[0], sphere.center[1] + d[1], sphere.center[2] + d[2]]
+    }
+
+    /// How far every pin has moved from its start at simulated time `t_s` (s), m: `d(t)` of
+    /// `cloth.pin_motion` when the scene has [`Effect::MovingPins`], else zero.
+    pub fn pin_displacement_at(&self, t_s: f64) -> [f64; 3] {
+        if !self.effects.contains(Effect::MovingPins) {
+            return [0.0; 3];
+        }
+        MotionOf::<f64>::of(&self.cloth.pin_motion).displacement(t_s).to_f64()
+    }
 }
 
 #[cfg(test)]

@@ -16,6 +16,7 @@ use crate::forces::{
 use crate::integrator::{Integrator, XPBD_ITERATIONS};
 use crate::model::ClothModel;
 use crate::motion::{MotionOf, wind_velocity};
+use crate::quantities::SceneQuantities;
 use crate::real::{Real, Vec3};
 use crate::scene::Scene;
 use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
@@ -123,38 +124,35 @@ struct Params<R> {
 
 impl<R: Real> Params<R> {
     fn new(scene: &Scene) -> Self {
-        let s = &scene.springs;
-        let spheres = if scene.effects.contains(Effect::SphereContact) {
-            scene
-                .spheres
-                .iter()
-                .map(|s| Sphere {
-                    center: Vec3::from_f64(s.center),
-                    radius: R::of(s.radius),
-                    stiffness: R::of(s.stiffness),
-                    friction: R::of(s.friction),
-                    damping: R::of(s.damping),
-                    motion: MotionOf::of(&s.motion),
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let q = SceneQuantities::of(scene);
+        let spheres = q
+            .spheres
+            .iter()
+            .map(|s| Sphere {
+                center: Vec3::from_f64(s.center),
+                radius: R::of(s.radius),
+                stiffness: R::of(s.stiffness),
+                friction: R::of(s.friction),
+                damping: R::of(s.damping),
+                motion: MotionOf::of(&s.motion),
+            })
+            .collect();
+        let of3 = |v: [f64; 3]| [R::of(v[0]), R::of(v[1]), R::of(v[2])];
         Self {
-            gravity: Vec3::from_f64(scene.gravity),
-            stiffness: [R::of(s.structural.stiffness), R::of(s.shear.stiffness), R::of(s.bend.stiffness)],
-            damping: [R::of(s.structural.damping), R::of(s.shear.damping), R::of(s.bend.damping)],
-            mass: R::of(scene.vertex_mass()),
-            dt: R::of(scene.substep_dt()),
-            air_drag: R::of(scene.air_drag),
+            gravity: Vec3::from_f64(q.gravity),
+            stiffness: of3(q.stiffness),
+            damping: of3(q.damping),
+            mass: R::of(q.vertex_mass),
+            dt: R::of(q.substep_dt),
+            air_drag: R::of(q.air_drag),
             spheres,
-            wind: Vec3::from_f64(scene.wind.velocity),
-            wind_coefficient_area: R::of(crate::layout::GpuSimParams::wind_coefficient_area(scene)),
-            gust_amplitude: R::of(scene.wind.gust_amplitude),
-            gust_omega: R::of(2.0 * std::f64::consts::PI / scene.wind.gust_period),
-            pin_motion: MotionOf::of(&scene.cloth.pin_motion),
-            nx: scene.cloth.resolution[0] as usize,
-            ny: scene.cloth.resolution[1] as usize,
+            wind: Vec3::from_f64(q.wind_velocity),
+            wind_coefficient_area: R::of(q.wind_coefficient_area),
+            gust_amplitude: R::of(q.gust_amplitude),
+            gust_omega: R::of(q.gust_omega),
+            pin_motion: MotionOf::of(&q.pin_motion),
+            nx: q.resolution[0] as usize,
+            ny: q.resolution[1] as usize,
         }
     }
 

@@ -12,13 +12,12 @@
 //! )
 //! ```
 //!
-//! Loading never panics: [`Scene::from_ron_str`] returns a [`SceneError`] that names the
+//! Loading never panics: [`Scene::from_ron_str`] returns a [`SceneError`](crate::SceneError) that names the
 //! line and column of a syntax error, or every validation problem at once.
 
 use serde::{Deserialize, Serialize};
 
-use crate::effects::{Effect, EffectSet};
-use crate::error::SceneError;
+use crate::effects::EffectSet;
 
 /// A complete simulation set-up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -331,27 +330,6 @@ impl Auto {
 }
 
 impl Scene {
-    /// Parses a RON scene and validates it.
-    ///
-    /// # Errors
-    /// [`SceneError::Parse`] with line and column for malformed text,
-    /// [`SceneError::Invalid`] listing every validation problem.
-    pub fn from_ron_str(text: &str) -> Result<Self, SceneError> {
-        let scene: Scene = ron::de::from_str(text).map_err(SceneError::from_ron)?;
-        scene.validate()?;
-        Ok(scene)
-    }
-
-    /// Reads, parses and validates a RON scene file.
-    ///
-    /// # Errors
-    /// [`SceneError::Io`] when the file cannot be read, else as [`Scene::from_ron_str`].
-    pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
-        Self::from_ron_str(&text)
-    }
-
     /// Serialises the scene as pretty RON.
     pub fn to_ron_string(&self) -> String {
         let config = ron::ser::PrettyConfig::new().depth_limit(4).struct_names(true);
@@ -368,40 +346,6 @@ impl Scene {
         match self.cloth.mass {
             Mass::PerVertex(m) => m,
             Mass::Total(total) => total / self.vertex_count().max(1) as f64,
-        }
-    }
-
-    /// Where sphere `index` is at simulated time `t_s` (s), m: `center + d(t)` of its
-    /// [`Motion`] when the scene has [`Effect::MovingSpheres`], else `center`. What renderers
-    /// draw; the solvers evaluate the same motion in their own precision.
-    pub fn sphere_center_at(&self, index: usize, t_s: f64) -> [f64; 3] {
-        let sphere = &self.spheres[index];
-        if !self.effects.contains(Effect::MovingSpheres) {
-            return sphere.center;
-        }
-        let d = crate::motion::MotionOf::<f64>::of(&sphere.motion).displacement(t_s).to_f64();
-        [sphere.center[0] + d[0], sphere.center[1] + d[1], sphere.center[2] + d[2]]
-    }
-
-    /// How far every pin has moved from its start at simulated time `t_s` (s), m: `d(t)` of
-    /// `cloth.pin_motion` when the scene has [`Effect::MovingPins`], else zero.
-    pub fn pin_displacement_at(&self, t_s: f64) -> [f64; 3] {
-        if !self.effects.contains(Effect::MovingPins) {
-            return [0.0; 3];
-        }
-        crate::motion::MotionOf::<f64>::of(&self.cloth.pin_motion).displacement(t_s).to_f64()
-    }
-
-    /// Length of one substep, s (for `Auto`, the one [`crate::stability`] picks).
-    pub fn substep_dt(&self) -> f64 {
-        self.time.frame_dt / self.substeps_per_frame() as f64
-    }
-
-    /// Substeps per frame, resolving `Auto` against the stability bound.
-    pub fn substeps_per_frame(&self) -> u32 {
-        match self.time.substeps {
-            Substeps::Fixed(n) => n.max(1),
-            Substeps::Auto => crate::stability::auto_substeps(self),
         }
     }
 }

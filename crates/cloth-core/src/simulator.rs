@@ -112,30 +112,17 @@ pub trait Simulator {
     /// [`SimError::Device`] when the read-back fails.
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError>;
 
-    /// Substeps one dispatch advances at once where the backend fuses them (temporal blocking,
-    /// [`crate::tiling`]); `1` where each substep is its own pass (and on the CPU).
+    /// Substeps one dispatch advances at once where the backend fuses them (semi-implicit
+    /// Euler's tiled kernel on the GPU); `1` where each substep is its own pass (and on the CPU).
     fn fused_substeps(&self) -> u32 {
         1
     }
 
     /// Bytes a vertex of the state the substeps hand each other through device memory: 32 for
     /// the two `vec4`s (position, velocity), 24 where semi-implicit Euler runs on its packed
-    /// state ([`crate::layout::PackedState`]); `None` on the CPU backends.
+    /// state; `None` on the CPU backends.
     fn substep_state_bytes(&self) -> Option<u32> {
         None
-    }
-
-    /// Chooses whether semi-implicit Euler fuses substeps with the tiled kernel
-    /// ([`crate::tiling::Tiling`]; a new simulator starts at `Auto`). Returns the substeps per
-    /// dispatch from now on: 1 where nothing is fused (other integrators, the CPU, a device that
-    /// cannot run the tiled kernel, or `Off`).
-    ///
-    /// # Errors
-    /// [`SimError::Unsupported`] for a tuning knob that is wrong, [`SimError::Device`] when the
-    /// tiled pipeline cannot be built.
-    fn set_tiling(&mut self, tiling: crate::tiling::Tiling) -> Result<u32, SimError> {
-        let _ = tiling;
-        Ok(1)
     }
 
     /// Submissions and host waits of the last `advance` (no device access).

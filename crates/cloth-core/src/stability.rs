@@ -15,7 +15,7 @@
 //! the bound.
 
 use crate::effects::Effect;
-use crate::scene::{Auto, Scene};
+use crate::scene::{Auto, Scene, Substeps};
 use crate::springs::SpringKind;
 
 /// Largest stable substep `h_max`, s, for the scene's springs, masses, damping and integrator
@@ -225,6 +225,21 @@ pub fn spectral_stable_substep(model: &crate::model::ClothModel) -> f64 {
 /// `Δt / h_max`: below 1 is stable, above 1 diverges.
 pub fn stability_margin(scene: &Scene) -> f64 {
     scene.substep_dt() / stable_substep(scene)
+}
+
+impl Scene {
+    /// Length of one substep, s (for `Auto`, the one [`auto_substeps`] picks).
+    pub fn substep_dt(&self) -> f64 {
+        self.time.frame_dt / self.substeps_per_frame() as f64
+    }
+
+    /// Substeps per frame, resolving `Auto` against the stability bound.
+    pub fn substeps_per_frame(&self) -> u32 {
+        match self.time.substeps {
+            Substeps::Fixed(n) => n.max(1),
+            Substeps::Auto => auto_substeps(self),
+        }
+    }
 }
 
 #[cfg(test)]

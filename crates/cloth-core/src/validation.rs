@@ -3,7 +3,7 @@
 use crate::effects::Effect;
 use crate::error::{Problem, SceneError};
 use crate::grid::pin_indices;
-use crate::layout::MemoryEstimate;
+use crate::model::ClothModel;
 use crate::scene::{Mass, Orientation, Scene, SpringSpec, Substeps};
 use crate::stability;
 
@@ -90,13 +90,13 @@ impl Scene {
             }
         }
         if grid_ok {
-            let memory = MemoryEstimate::of(self);
-            if (nx as u64) * (ny as u64) > u32::MAX as u64 / 2 || memory.host_bytes > MAX_HOST_BYTES {
+            let host_bytes = ClothModel::estimated_host_bytes(self);
+            if (nx as u64) * (ny as u64) > u32::MAX as u64 / 2 || host_bytes > MAX_HOST_BYTES {
                 c.fail(
                     "cloth.resolution",
                     format!(
                         "grid {nx}x{ny} needs about {} MiB of memory, more than the {} MiB this tool allocates",
-                        memory.host_bytes >> 20,
+                        host_bytes >> 20,
                         MAX_HOST_BYTES >> 20
                     ),
                     "use a smaller grid",
@@ -181,6 +181,29 @@ impl Scene {
             });
         }
         Ok(warnings)
+    }
+}
+
+impl Scene {
+    /// Parses a RON scene and validates it.
+    ///
+    /// # Errors
+    /// [`SceneError::Parse`] with line and column for malformed text,
+    /// [`SceneError::Invalid`] listing every validation problem.
+    pub fn from_ron_str(text: &str) -> Result<Self, SceneError> {
+        let scene: Scene = ron::de::from_str(text).map_err(SceneError::from_ron)?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Reads, parses and validates a RON scene file.
+    ///
+    /// # Errors
+    /// [`SceneError::Io`] when the file cannot be read, else as [`Scene::from_ron_str`].
+    pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
+        Self::from_ron_str(&text)
     }
 }
 

@@ -70,9 +70,9 @@ struct SharedInstance {
 /// Creates the instance once per process and shares it (debug builds enable validation when
 /// the layer is installed).
 ///
-/// On an NVIDIA H100 (driver 580.159.04) creating and destroying instances repeatedly in one
-/// process made `vkCreateInstance` fail after about 20 cycles (seen with wgpu and vulkano
-/// alike); one shared instance avoids it, and saves its start-up cost.
+/// With NVIDIA's driver 580, creating and destroying instances repeatedly in one process makes
+/// `vkCreateInstance` fail after about 20 cycles (wgpu and vulkano alike); one shared instance
+/// avoids it, and saves its start-up cost.
 fn shared_instance() -> Result<&'static SharedInstance, SimError> {
     static SHARED: std::sync::OnceLock<Result<SharedInstance, String>> = std::sync::OnceLock::new();
     SHARED
@@ -162,12 +162,13 @@ fn no_device_reason() -> String {
 
 impl VulkanContext {
     /// Opens the best device (a discrete GPU first, lavapipe last), or the first whose name
-    /// contains `name_contains`. In debug builds the Khronos validation layer is enabled when
-    /// installed.
+    /// contains `name_contains`, with `VK_KHR_pipeline_executable_properties` when `statistics`
+    /// asks for it and the device offers it. In debug builds the Khronos validation layer is
+    /// enabled when installed.
     ///
     /// # Errors
     /// [`SimError::Unavailable`] without a loader, without a device, or when none matches.
-    pub fn new(name_contains: Option<&str>) -> Result<Self, SimError> {
+    pub fn new(name_contains: Option<&str>, statistics: bool) -> Result<Self, SimError> {
         let shared = shared_instance()?;
         let (validation, messages) = (shared.validation, shared.messages.clone());
         let devices = compute_devices(&shared.instance)?;
@@ -185,10 +186,11 @@ impl VulkanContext {
         };
         let description = describe(&physical);
         // The compiler's statistics of each pipeline, where asked for and offered (statistics.rs).
-        let statistics = crate::statistics::wanted()
+        let wanted = statistics;
+        let statistics = wanted
             && physical.supported_extensions().khr_pipeline_executable_properties
             && physical.supported_features().pipeline_executable_info;
-        if crate::statistics::wanted() && !statistics {
+        if wanted && !statistics {
             eprintln!(
                 "pipeline statistics: {description} does not offer VK_KHR_pipeline_executable_properties (extension {}, feature {})",
                 physical.supported_extensions().khr_pipeline_executable_properties,

@@ -1,7 +1,7 @@
 //! What the driver's compiler made of each kernel: registers, shared memory, spills and the like,
 //! as the driver reports them through `VK_KHR_pipeline_executable_properties`. A diagnostic for
-//! tuning (occupancy is registers and shared memory), asked for with `CLOTH_PIPELINE_STATS=1` and
-//! printed to stderr as each pipeline is built.
+//! tuning (occupancy is registers and shared memory), asked for with
+//! `GpuTuning::pipeline_statistics` and printed to standard error as each pipeline is built.
 
 use std::sync::Arc;
 
@@ -20,11 +20,6 @@ pub(crate) enum StatisticsError {
     Constant(u32),
     #[error("the driver answered {0:?}")]
     Vulkan(vk::Result),
-}
-
-/// Whether `CLOTH_PIPELINE_STATS=1` asks for the statistics.
-pub(crate) fn wanted() -> bool {
-    std::env::var("CLOTH_PIPELINE_STATS").is_ok_and(|v| v.trim() == "1")
 }
 
 /// Whether `device` was opened with the extension and feature the statistics need.

@@ -34,7 +34,7 @@ fn validation_is_on_in_debug_runs_when_the_layer_is_installed() {
         .iter()
         .any(|d| std::path::Path::new(d).join("VkLayer_khronos_validation.json").exists());
     if cfg!(debug_assertions) && installed {
-        assert!(sim.context().validation, "the Khronos validation layer is installed but not enabled");
+        assert!(sim.backend().context().validation, "the Khronos validation layer is installed but not enabled");
         assert!(sim.adapter_name().ends_with("validation on"));
     }
 }
@@ -42,8 +42,8 @@ fn validation_is_on_in_debug_runs_when_the_layer_is_installed() {
 fn a_validation_message_fails_the_next_operation() {
     let Some(mut sim) = simulator() else { return };
     sim.advance(2).unwrap();
-    sim.context().messages.lock().unwrap().push("ERROR: a message injected by this test".into());
+    sim.backend().context().messages.lock().unwrap().push("ERROR: a message injected by this test".into());
     let err = sim.advance(1).unwrap_err().to_string();
-    sim.context().messages.lock().unwrap().clear();
+    sim.backend().context().messages.lock().unwrap().clear();
     assert!(err.contains("Vulkan validation: ERROR: a message injected by this test"), "{err}");
 }

@@ -6,7 +6,7 @@ use std::time::Instant;
 use cloth_core::SimError;
 
 use crate::BACKEND_NAME;
-use crate::context::{AdapterChoice, GpuContext};
+use crate::context::GpuContext;
 
 /// What a copy-bandwidth measurement found.
 #[derive(Clone, Debug, PartialEq)]
@@ -52,12 +52,13 @@ fn copy(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
 /// allows less) by a compute kernel (`vec4<f32>` loads and stores, a grid-stride loop) in one
 /// compute pass, timed by timestamp queries where the device has them (else by the wall clock
 /// from submission to completion); and the same number of `copy_buffer_to_buffer` commands in one
-/// submission, by the wall clock. Each copied byte counts twice (read and written).
+/// submission, by the wall clock. Each copied byte counts twice (read and written). On the
+/// adapter whose name contains `adapter`, else the best.
 ///
 /// # Errors
 /// [`SimError::Unavailable`] when no adapter matches; [`SimError::Device`] when the device fails.
-pub fn copy_bandwidth(choice: &AdapterChoice) -> Result<CopyBandwidth, SimError> {
-    let context = GpuContext::new(choice)?;
+pub fn copy_bandwidth(adapter: Option<&str>) -> Result<CopyBandwidth, SimError> {
+    let context = GpuContext::new(adapter)?;
     let (device, queue) = (&context.device, &context.queue);
     let limits = device.limits();
     let bytes = (512u64 << 20).min(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size) / 16 * 16;

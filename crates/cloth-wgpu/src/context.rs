@@ -4,21 +4,6 @@ use cloth_core::SimError;
 
 use crate::BACKEND_NAME;
 
-/// Which adapter to use.
-#[derive(Clone, Debug, Default)]
-pub struct AdapterChoice {
-    /// Use the first adapter whose name contains this text (case-insensitive); `None` picks the
-    /// best: a discrete GPU, then integrated, virtual, other, and a CPU implementation last.
-    pub name_contains: Option<String>,
-}
-
-impl AdapterChoice {
-    /// The choice from the `CLOTH_ADAPTER` environment variable, if set.
-    pub fn from_env() -> Self {
-        Self { name_contains: std::env::var("CLOTH_ADAPTER").ok().filter(|s| !s.is_empty()) }
-    }
-}
-
 /// A device and queue with a description of the adapter they come from.
 #[derive(Clone, Debug)]
 pub struct GpuContext {
@@ -29,7 +14,7 @@ pub struct GpuContext {
     /// The adapter, in words: name, backend, type, driver.
     pub adapter_description: String,
     /// The adapter's type (semi-implicit Euler's tiled kernel is not used by default on a CPU:
-    /// `cloth_core::tiling::Tiling::Auto`).
+    /// `cloth_gpu::Tiling::Auto`).
     pub device_type: wgpu::DeviceType,
 }
 
@@ -48,19 +33,17 @@ fn rank(device_type: wgpu::DeviceType) -> u8 {
     }
 }
 
-/// The process's one wgpu instance.
+/// The process's one wgpu instance, on the backends that run compute shaders (Vulkan, Metal,
+/// DX12; not GL).
 ///
-/// Created once and shared: on an NVIDIA H100 (driver 580.159.04) creating and dropping
-/// instances repeatedly in one process made instance creation fail after about 20 cycles (seen
-/// with wgpu and vulkano alike), and an instance costs over a second to create there.
+/// Created once and shared: with NVIDIA's driver 580, creating and dropping instances repeatedly
+/// in one process makes instance creation fail after about 20 cycles (wgpu and vulkano alike),
+/// and an instance costs over a second to create there.
 fn instance() -> &'static wgpu::Instance {
     static INSTANCE: std::sync::OnceLock<wgpu::Instance> = std::sync::OnceLock::new();
     INSTANCE.get_or_init(|| {
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        if wgpu::Backends::from_env().is_none() {
-            // Compute needs Vulkan, Metal or DX12; the GL backend cannot run these shaders.
-            desc.backends = wgpu::Backends::PRIMARY;
-        }
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = wgpu::Backends::PRIMARY;
         wgpu::Instance::new(desc)
     })
 }
@@ -112,14 +95,15 @@ pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Li
 }
 
 impl GpuContext {
-    /// Opens a device on the chosen adapter, with the largest storage buffers it offers.
+    /// Opens a device on the best adapter, or the first whose name contains `name_contains`
+    /// (case-insensitive), with the largest storage buffers it offers.
     ///
     /// # Errors
     /// [`SimError::Unavailable`] when no adapter matches or the device cannot be opened.
-    pub fn new(choice: &AdapterChoice) -> Result<Self, SimError> {
+    pub fn new(name_contains: Option<&str>) -> Result<Self, SimError> {
         let unavailable = |reason: String| SimError::Unavailable { backend: BACKEND_NAME, reason };
         let adapters = compute_adapters();
-        let adapter = match &choice.name_contains {
+        let adapter = match name_contains {
             None => adapters.into_iter().next().ok_or_else(|| unavailable(no_adapter_reason()))?,
             Some(wanted) => {
                 let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();

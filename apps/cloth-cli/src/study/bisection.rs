@@ -67,7 +67,7 @@ impl std::fmt::Display for Limit {
 /// start) stays finite and within 1 km.
 fn stable(
     backend: &Backend,
-    adapter: Option<&str>,
+    tuning: &cloth_gpu::GpuTuning,
     base: &Scene,
     integrator: Integrator,
     h: f64,
@@ -76,7 +76,7 @@ fn stable(
     scene.integrator = integrator;
     scene.time.frame_dt = h;
     scene.time.substeps = Substeps::Fixed(1);
-    let mut sim = match (backend.create)(&scene, adapter) {
+    let mut sim = match (backend.create)(&scene, tuning) {
         Ok(sim) => sim,
         // Validation refuses a step it predicts unstable only as a warning; anything else stops.
         Err(e @ (SimError::Unsupported { .. } | SimError::Unavailable { .. })) => return Err(e),
@@ -94,7 +94,7 @@ fn stable(
 /// Bisects the largest stable substep of `integrator` on `backend`.
 pub fn largest_stable_substep(
     backend: &Backend,
-    adapter: Option<&str>,
+    tuning: &cloth_gpu::GpuTuning,
     base: &Scene,
     integrator: Integrator,
 ) -> anyhow::Result<Limit> {
@@ -103,7 +103,7 @@ pub fn largest_stable_substep(
     let spectral_s = stability::spectral_stable_substep(&ClothModel::new(&scene));
     let safe_s = stability::stable_substep(&scene);
     let limit = |outcome| Limit { backend: backend.name.to_string(), integrator, spectral_s, safe_s, outcome };
-    let trial = |h: f64| stable(backend, adapter, base, integrator, h);
+    let trial = |h: f64| stable(backend, tuning, base, integrator, h);
     let skipped = |e: SimError| -> anyhow::Result<Limit> {
         match e {
             SimError::Unsupported { .. } | SimError::Unavailable { .. } => Ok(limit(Outcome::Skipped(e.to_string()))),

@@ -182,7 +182,7 @@ const TIMER_READ_EVERY: u32 = 200;
 /// the row and the adapter in words.
 pub fn run(
     backend: &Backend,
-    adapter: Option<&str>,
+    tuning: &cloth_gpu::GpuTuning,
     base: &Scene,
     integrator: Integrator,
     substeps: u32,
@@ -197,7 +197,7 @@ pub fn run(
     let sim: &mut dyn Simulator = if backend.name == "cpu-f64" {
         f64_sim.insert(CpuSimulatorF64::new(&scene)?)
     } else {
-        any_sim.insert((backend.create)(&scene, adapter)?).as_mut()
+        any_sim.insert((backend.create)(&scene, tuning)?).as_mut()
     };
     let adapter_name = sim.adapter_name();
     let timed = sim.set_gpu_timing(true);

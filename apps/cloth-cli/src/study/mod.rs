@@ -42,9 +42,8 @@ pub struct AccuracyArgs {
     /// Grid resolution override, e.g. 16x16.
     #[arg(long, value_parser = crate::parse_grid)]
     grid: Option<[u32; 2]>,
-    /// Adapter name filter for the GPU backends.
-    #[arg(long)]
-    adapter: Option<String>,
+    #[command(flatten)]
+    tuning: crate::tuning::TuningArgs,
     /// CSV output; the plot is written beside it (same name, .svg and .png).
     #[arg(long, default_value = "out/accuracy.csv")]
     csv: PathBuf,
@@ -141,7 +140,7 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         for &integrator in &integrators {
             for (done, &n) in args.substeps.iter().enumerate() {
                 bar.set_message(format!("{} {} {n}", backend.name, integrator.name()));
-                match measure::run(backend, args.adapter.as_deref(), &base, integrator, n, frames, &reference) {
+                match measure::run(backend, &args.tuning.tuning(), &base, integrator, n, frames, &reference) {
                     Ok((row, adapter)) => {
                         bar.suspend(|| row.print());
                         if !study.adapters.iter().any(|(b, _)| b == backend.name) {
@@ -178,7 +177,7 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
                 continue;
             }
             for &integrator in &integrators {
-                let limit = bisection::largest_stable_substep(backend, args.adapter.as_deref(), &base, integrator)?;
+                let limit = bisection::largest_stable_substep(backend, &args.tuning.tuning(), &base, integrator)?;
                 println!("  {limit}");
                 study.limits.push(limit);
             }

@@ -30,12 +30,12 @@ pub struct EffectCostsPanel {
 
 impl EffectCostsPanel {
     /// Starts measuring `scene` on `backend` in the background.
-    pub fn start(&mut self, scene: &Scene, backend: &str) {
+    pub fn start(&mut self, scene: &Scene, backend: &str, tuning: &cloth_gpu::GpuTuning) {
         let progress = Arc::new(Mutex::new(Progress::default()));
-        let (shared, scene, name) = (progress.clone(), scene.clone(), backend.to_string());
+        let (shared, scene, name, tuning) = (progress.clone(), scene.clone(), backend.to_string(), tuning.clone());
         std::thread::spawn(move || {
             let result = cloth_backends::find(&name).and_then(|b| {
-                effect_cost::measure(&scene, &b, None, FRAMES, |done, total| {
+                effect_cost::measure(&scene, &b, &tuning, FRAMES, |done, total| {
                     if let Ok(mut p) = shared.lock() {
                         (p.done, p.total) = (done, total);
                     }
@@ -73,7 +73,7 @@ impl EffectCostsPanel {
     }
 
     /// `scene` is the one running on `backend` now.
-    pub fn show(&mut self, ui: &mut egui::Ui, scene: &Scene, backend: &str) {
+    pub fn show(&mut self, ui: &mut egui::Ui, scene: &Scene, backend: &str, tuning: &cloth_gpu::GpuTuning) {
         let idle = self.running.is_none();
         let button = egui::Button::new(format!("Measure effect costs ({backend})"));
         if ui
@@ -84,7 +84,7 @@ impl EffectCostsPanel {
             ))
             .clicked()
         {
-            self.start(scene, backend);
+            self.start(scene, backend, tuning);
         }
         if let Some(progress) = &self.running {
             let p = progress.lock().map(|p| p.clone()).unwrap_or_default();

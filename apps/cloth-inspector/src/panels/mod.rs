@@ -11,6 +11,7 @@ pub mod springs;
 pub mod stats;
 pub mod study;
 pub mod time;
+pub mod tuning;
 
 use cloth_core::{Problem, Scene};
 use eframe::egui;

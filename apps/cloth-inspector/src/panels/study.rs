@@ -34,7 +34,7 @@ impl StudyPanel {
     }
 
     /// `backend` is the one running now: the quick study runs there.
-    pub fn show(&mut self, ui: &mut egui::Ui, scene: &cloth_core::Scene, backend: &str) {
+    pub fn show(&mut self, ui: &mut egui::Ui, scene: &cloth_core::Scene, backend: &str, tuning: &cloth_gpu::GpuTuning) {
         if !self.looked_for_last {
             self.looked_for_last = true;
             self.load_last();
@@ -50,7 +50,7 @@ impl StudyPanel {
                 )
                 .clicked()
             {
-                self.running = Some(crate::study::spawn_quick_study(scene, backend));
+                self.running = Some(crate::study::spawn_quick_study(scene, backend, tuning));
                 self.message = None;
             }
             if ui

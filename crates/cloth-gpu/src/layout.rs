@@ -1,0 +1,220 @@
+//! The structs the host shares with the shaders, each defined once here.
+//!
+//! Every type is `#[repr(C)]` and `bytemuck::Pod`, laid out for WGSL and GLSL `std140`/`std430`
+//! (16-byte vectors first, uniform blocks a multiple of 16 bytes). Each shading language
+//! declares them once (`shaders/wgsl/layout.wgsl`, `shaders/glsl/layout.glsl`), and a test
+//! reflects every shader module that uses them against [`struct_layouts`], which [`gpu_struct!`]
+//! generates from the Rust definitions below: a field added here and not in a shader fails it.
+//!
+//! The buffers of a simulation are listed by `plan.rs`; velocities carry the time of their state
+//! in `w` (s), so moving pins, moving spheres and gusts know the time of each stage without a
+//! host round trip.
+
+use bytemuck::{Pod, Zeroable};
+use cloth_core::{Scene, SceneQuantities};
+
+/// The byte layout of one shared struct: its name in the shaders, its size and its fields.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StructLayout {
+    /// Name of the struct in the shaders.
+    pub shader_name: &'static str,
+    /// Size in bytes.
+    pub size: usize,
+    /// `(field name, byte offset)` in declaration order; the shaders use the same names.
+    pub fields: Vec<(&'static str, usize)>,
+}
+
+/// Declares a shared struct (`#[repr(C)]`, `Pod`) and its [`StructLayout`] from one definition.
+macro_rules! gpu_struct {
+    ($(#[$meta:meta])* $name:ident as $shader:literal { $($(#[$field_meta:meta])* $field:ident: $ty:ty,)* }) => {
+        $(#[$meta])*
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+        pub struct $name {
+            $($(#[$field_meta])* pub $field: $ty,)*
+        }
+
+        impl $name {
+            /// The struct's layout, for the shader reflection tests.
+            pub fn layout() -> StructLayout {
+                StructLayout {
+                    shader_name: $shader,
+                    size: size_of::<Self>(),
+                    fields: vec![$((stringify!($field), std::mem::offset_of!(Self, $field)),)*],
+                }
+            }
+        }
+    };
+}
+
+gpu_struct! {
+    /// Simulation parameters, one uniform buffer (160 bytes). Every field can change between
+    /// frames without rebuilding a pipeline.
+    GpuSimParams as "SimParams" {
+        /// Gravitational acceleration, m/s² (xyz; w unused).
+        gravity: [f32; 4],
+        /// Spring stiffness `k`, N/m, indexed by `SpringKind` (w unused).
+        stiffness: [f32; 4],
+        /// Spring damping `c_d`, N·s/m, indexed by `SpringKind` (w unused).
+        damping: [f32; 4],
+        /// Mass of each vertex, kg.
+        vertex_mass: f32,
+        /// Substep length `Δt`, s.
+        substep_dt: f32,
+        /// Air-drag rate `γ`, 1/s.
+        air_drag: f32,
+        /// Number of vertices.
+        vertex_count: u32,
+        /// Number of spheres in the sphere buffer that the kernels test.
+        sphere_count: u32,
+        /// Grid vertices along u.
+        grid_nx: u32,
+        /// Grid vertices along v.
+        grid_ny: u32,
+        /// Effect bit mask, for diagnostics (the kernels branch on pipeline constants instead).
+        effects: u32,
+        /// Wind: mean velocity, m/s (xyz), and `w` = coefficient × area per vertex, N·s/m.
+        wind: [f32; 4],
+        /// Gusts: `x` relative amplitude, `y` angular frequency `2π / period`, rad/s.
+        gust: [f32; 4],
+        /// Pin motion: steady velocity, m/s (xyz), and `w` angular frequency, rad/s.
+        pin_velocity: [f32; 4],
+        /// Pin motion: amplitude of the oscillation, m (xyz).
+        pin_amplitude: [f32; 4],
+        /// Rest lengths, m: structural along u, along v, shear (bend: exactly twice the
+        /// structural ones). The kernels compute the springs from the grid with these.
+        rest_lengths: [f32; 4],
+    }
+}
+
+gpu_struct! {
+    /// One sphere collider (64 bytes).
+    GpuSphere as "Sphere" {
+        /// Centre at time 0, m.
+        center: [f32; 3],
+        /// Radius, m.
+        radius: f32,
+        /// Contact stiffness `k_c`, N/m.
+        stiffness: f32,
+        /// Friction coefficient `c_f`.
+        friction: f32,
+        /// Normal contact damping, N·s/m.
+        damping: f32,
+        /// Padding to 32 bytes.
+        pad: f32,
+        /// Motion: steady velocity, m/s.
+        velocity: [f32; 3],
+        /// Motion: angular frequency of the oscillation, rad/s.
+        omega: f32,
+        /// Motion: amplitude of the oscillation, m.
+        amplitude: [f32; 3],
+        /// Padding to 64 bytes.
+        pad2: f32,
+    }
+}
+
+gpu_struct! {
+    /// One spring as an XPBD constraint between vertices `a < b` (16 bytes).
+    GpuConstraint as "Constraint" {
+        /// First vertex (the lower index).
+        a: u32,
+        /// Second vertex.
+        b: u32,
+        /// `SpringKind as u32`.
+        kind: u32,
+        /// Rest length, m.
+        rest_length: f32,
+    }
+}
+
+gpu_struct! {
+    /// The constraints one XPBD projection dispatch handles: one colour (16 bytes, stored every
+    /// [`COLOR_RANGE_STRIDE`] bytes of a uniform buffer and selected by a dynamic offset).
+    GpuColorRange as "ColorRange" {
+        /// Index of the colour's first constraint.
+        first: u32,
+        /// Number of constraints of the colour.
+        count: u32,
+        /// 1 in the first iteration of a substep, where the multipliers `λ` start from 0.
+        first_iteration: u32,
+        /// Padding to 16 bytes.
+        pad: u32,
+    }
+}
+
+/// The layouts of every struct the shaders share with the host.
+pub fn struct_layouts() -> Vec<StructLayout> {
+    vec![GpuSimParams::layout(), GpuSphere::layout(), GpuConstraint::layout(), GpuColorRange::layout()]
+}
+
+/// Bytes between two [`GpuColorRange`]s in their uniform buffer: 256, the largest
+/// `minUniformBufferOffsetAlignment` Vulkan allows, so the dynamic offsets suit every device.
+pub const COLOR_RANGE_STRIDE: u64 = 256;
+
+impl GpuColorRange {
+    /// Byte offset of the range of colour `color` in iteration `iteration` (the dynamic offset):
+    /// the first iteration's ranges, then the others'.
+    pub fn offset(color: usize, iteration: u32) -> u32 {
+        let slot = if iteration == 0 { color } else { cloth_core::coloring::COLOR_COUNT + color };
+        (slot as u64 * COLOR_RANGE_STRIDE) as u32
+    }
+}
+
+impl GpuSimParams {
+    /// The parameters of a scene in `f32`, from [`SceneQuantities`].
+    pub fn of(scene: &Scene) -> Self {
+        let q = SceneQuantities::of(scene);
+        let f = |v: f64| v as f32;
+        let v4 = |v: [f64; 3], w: f64| [f(v[0]), f(v[1]), f(v[2]), f(w)];
+        let [nx, ny] = q.resolution;
+        let pins = &q.pin_motion;
+        Self {
+            gravity: v4(q.gravity, 0.0),
+            stiffness: v4(q.stiffness, 0.0),
+            damping: v4(q.damping, 0.0),
+            vertex_mass: f(q.vertex_mass),
+            substep_dt: f(q.substep_dt),
+            air_drag: f(q.air_drag),
+            vertex_count: nx.saturating_mul(ny),
+            sphere_count: q.spheres.len() as u32,
+            grid_nx: nx,
+            grid_ny: ny,
+            effects: scene.effects.bits(),
+            wind: v4(q.wind_velocity, q.wind_coefficient_area),
+            gust: [f(q.gust_amplitude), f(q.gust_omega), 0.0, 0.0],
+            pin_velocity: v4(pins.velocity, pins.angular_frequency()),
+            pin_amplitude: v4(pins.amplitude, 0.0),
+            rest_lengths: v4(q.rest_lengths, 0.0),
+        }
+    }
+}
+
+impl GpuSphere {
+    /// A scene sphere in `f32`.
+    pub fn from_spec(s: &cloth_core::scene::SphereSpec) -> Self {
+        let f = |v: [f64; 3]| v.map(|x| x as f32);
+        Self {
+            center: f(s.center),
+            radius: s.radius as f32,
+            stiffness: s.stiffness as f32,
+            friction: s.friction as f32,
+            damping: s.damping as f32,
+            pad: 0.0,
+            velocity: f(s.motion.velocity),
+            omega: s.motion.angular_frequency() as f32,
+            amplitude: f(s.motion.amplitude),
+            pad2: 0.0,
+        }
+    }
+
+    /// The spheres the kernels test for `scene` (none without `SphereContact`), at least one
+    /// element so that the buffer is never empty (`GpuSimParams::sphere_count` says how many
+    /// are real).
+    pub fn of_scene(scene: &Scene) -> Vec<Self> {
+        let mut spheres: Vec<Self> = SceneQuantities::of(scene).spheres.iter().map(Self::from_spec).collect();
+        if spheres.is_empty() {
+            spheres.push(Self::default());
+        }
+        spheres
+    }
+}

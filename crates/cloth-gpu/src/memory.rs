@@ -1,0 +1,87 @@
+//! Device memory a scene needs, from the closed-form spring counts, without building anything:
+//! a grid too large for the device is refused before any allocation.
+
+use cloth_core::coloring::COLOR_COUNT;
+use cloth_core::{Integrator, Scene, SimError, SpringKind};
+
+use crate::layout::COLOR_RANGE_STRIDE;
+
+/// Bytes of the GPU buffers of a scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// Bytes of the largest single buffer (a state buffer, RK4's scratch or XPBD's constraints).
+    pub largest_buffer_bytes: u64,
+    /// Bytes of all GPU buffers together.
+    pub device_bytes: u64,
+}
+
+impl MemoryEstimate {
+    /// The buffers `plan.rs` creates for `scene`: four `vec4` state buffers (two positions, two
+    /// velocities, 16 bytes a vertex each); RK4's scratch (four `vec4`s a vertex) and stage
+    /// state; Verlet's half-step velocities; semi-implicit Euler's two packed states and pin
+    /// bits; XPBD's constraints (16 bytes), multipliers (4) and normal corrections; spheres and
+    /// parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
+    /// overflow.
+    pub fn of(scene: &Scene) -> Self {
+        let [nx, ny] = scene.cloth.resolution.map(u128::from);
+        let vertices = nx * ny;
+        let springs: u128 = SpringKind::ALL
+            .iter()
+            .filter(|k| scene.effects.contains(k.effect()))
+            .map(|k| k.count_in_grid(nx as u64, ny as u64) as u128)
+            .sum::<u128>()
+            .max(1);
+        let state = 16 * vertices;
+        let (extra, largest) = match scene.integrator {
+            Integrator::SemiImplicitEuler => (2 * (24 * vertices + 8) + 4 * vertices.div_ceil(32).max(1), state),
+            Integrator::VelocityVerlet => (state, state),
+            Integrator::RungeKutta4 => (4 * state + 2 * state, 4 * state),
+            Integrator::Xpbd => {
+                (20 * springs + 4 * vertices + 2 * COLOR_COUNT as u128 * COLOR_RANGE_STRIDE as u128, 16 * springs)
+            }
+        };
+        let spheres = 64 * scene.spheres.len().max(1) as u128;
+        let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
+        Self { largest_buffer_bytes: clamp(largest.max(state)), device_bytes: clamp(4 * state + extra + spheres + 160) }
+    }
+}
+
+/// Side `n` of the largest square `n × n` grid of `scene` (its other settings kept) whose largest
+/// buffer fits in `limit_bytes` (2 when not even that fits).
+pub fn largest_square_grid(scene: &Scene, limit_bytes: u64) -> u32 {
+    let fits = |n: u32| {
+        let mut s = scene.clone();
+        s.cloth.resolution = [n, n];
+        MemoryEstimate::of(&s).largest_buffer_bytes <= limit_bytes
+    };
+    let (mut lo, mut hi) = (2u32, 1u32 << 20);
+    if !fits(lo) {
+        return lo;
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) { lo = mid } else { hi = mid }
+    }
+    lo
+}
+
+/// Refuses a scene whose largest buffer exceeds `max_storage_binding` bytes, naming the grid, the
+/// bytes, the limit (`resource`, in words) and the largest square grid that fits.
+///
+/// # Errors
+/// [`SimError::TooLarge`].
+pub fn check_fits(scene: &Scene, max_storage_binding: u64, resource: &str) -> Result<(), SimError> {
+    let needed = MemoryEstimate::of(scene).largest_buffer_bytes;
+    if needed <= max_storage_binding {
+        return Ok(());
+    }
+    let [nx, ny] = scene.cloth.resolution;
+    Err(SimError::TooLarge {
+        nx,
+        ny,
+        resource: resource.into(),
+        needed_bytes: needed,
+        limit_bytes: max_storage_binding,
+        largest_square: largest_square_grid(scene, max_storage_binding),
+    })
+}

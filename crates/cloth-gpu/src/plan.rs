@@ -1,0 +1,587 @@
+//! The plan of a simulation on a GPU: every buffer, kernel, pipeline and bind group it needs and
+//! the [`Schedule`] of its dispatches, for a scene, its integrator, a [`GpuTuning`] and what the
+//! device allows. Written once: a backend creates the objects listed here, in order, and records
+//! the dispatches the schedule gives.
+
+use cloth_core::coloring::COLOR_COUNT;
+use cloth_core::integrator::XPBD_ITERATIONS;
+use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
+
+use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
+use crate::layout::{COLOR_RANGE_STRIDE, GpuColorRange, GpuConstraint, GpuSimParams, GpuSphere};
+use crate::schedule::{PackedPasses, Pass, Schedule, TiledPass};
+use crate::tuning::GpuTuning;
+
+/// Index into [`Plan::buffers`].
+pub type BufferId = usize;
+/// Index into [`Plan::kernels`].
+pub type KernelId = usize;
+/// Index into [`Plan::pipelines`].
+pub type PipelineId = usize;
+/// Index into [`Plan::bind_groups`].
+pub type BindGroupId = usize;
+
+/// How a buffer is bound.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BufferUsage {
+    /// A uniform block.
+    Uniform,
+    /// A storage buffer.
+    Storage,
+    /// A storage buffer a renderer on the same device may also draw from (vertex positions).
+    StorageDrawable,
+}
+
+/// A buffer: its label, usage, size in bytes, and contents (`None`: zeros).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BufferDesc {
+    /// Label, for debuggers and validation messages.
+    pub label: String,
+    /// How it is bound.
+    pub usage: BufferUsage,
+    /// Size, bytes.
+    pub size: u64,
+    /// Initial contents, `size` bytes; `None`: zeros.
+    pub contents: Option<Vec<u8>>,
+}
+
+/// What one binding of a kernel holds (binding `i` of set 0 is the `i`-th).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Binding {
+    /// A uniform block of `size` bytes; `dynamic` when chosen by a dynamic offset.
+    Uniform {
+        /// Bytes of the block.
+        size: u64,
+        /// Whether a dynamic offset selects the block.
+        dynamic: bool,
+    },
+    /// A storage buffer.
+    Storage {
+        /// Whether the kernel only reads it.
+        read_only: bool,
+    },
+}
+
+/// A shader module of `shaders/`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shader {
+    /// `cloth_step`: one substep of a force-based integrator (or one stage).
+    Step,
+    /// `cloth_step_tiled`: several semi-implicit Euler substeps of a tile in workgroup memory.
+    Tiled(TileConfig),
+    /// `xpbd`: XPBD's passes.
+    Xpbd,
+}
+
+/// A kernel: a shader module and the layout of its bindings, shared by its pipelines.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KernelDesc {
+    /// The module.
+    pub shader: Shader,
+    /// Its bindings, in binding order.
+    pub bindings: Vec<Binding>,
+}
+
+/// A pipeline constant of the kernels: WGSL `override` or a module constant, GLSL
+/// specialization constant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Constant {
+    /// An effect, compiled in (1) or out (0).
+    Effect(Effect),
+    /// Invocations per workgroup.
+    WorkgroupSize,
+    /// `cloth_step`'s integration stage (0 Euler, 1-2 Verlet, 3-6 RK4).
+    Stage,
+    /// XPBD's pass (0 predict, 1 a colour, 2 the spheres, 3 finish).
+    XpbdPass,
+    /// Vertices along `i` of a block, 0 for rows.
+    BlockWidth,
+    /// 1: the pipeline reads the packed state.
+    PackedIn,
+    /// 1: the pipeline writes the packed state.
+    PackedOut,
+    /// 1: the workgroups take the blocks backward.
+    ReversedOrder,
+    /// The tile's width, cells.
+    TileWidth,
+    /// The tile's height, cells.
+    TileHeight,
+    /// The tile's cells.
+    TileCells,
+    /// Substeps per tiled dispatch.
+    FusedSubsteps,
+}
+
+impl Constant {
+    /// The constant's name in the shaders.
+    pub fn name(self) -> &'static str {
+        match self {
+            Constant::Effect(e) => e.shader_constant_name(),
+            Constant::WorkgroupSize => "WORKGROUP_SIZE",
+            Constant::Stage => "STAGE",
+            Constant::XpbdPass => "XPBD_PASS",
+            Constant::BlockWidth => "BLOCK_WIDTH",
+            Constant::PackedIn => "PACKED_IN",
+            Constant::PackedOut => "PACKED_OUT",
+            Constant::ReversedOrder => "REVERSED_ORDER",
+            Constant::TileWidth => "TILE_WIDTH",
+            Constant::TileHeight => "TILE_HEIGHT",
+            Constant::TileCells => "TILE_CELLS",
+            Constant::FusedSubsteps => "FUSED_SUBSTEPS",
+        }
+    }
+
+    /// Whether WGSL declares it as a module constant rather than an `override`: the tile's
+    /// sizes, which size workgroup arrays (the backend writes them into the module's source).
+    pub fn is_wgsl_module_constant(self) -> bool {
+        matches!(self, Constant::TileWidth | Constant::TileHeight | Constant::TileCells | Constant::FusedSubsteps)
+    }
+
+    /// Its GLSL `constant_id`: the effects `0..` in `Effect::ALL` order, the others from 100.
+    pub fn spec_id(self) -> u32 {
+        match self {
+            Constant::Effect(e) => Effect::ALL.iter().position(|x| *x == e).unwrap_or(0) as u32,
+            Constant::WorkgroupSize => 100,
+            Constant::Stage | Constant::XpbdPass => 101,
+            Constant::TileWidth => 102,
+            Constant::TileHeight => 103,
+            Constant::TileCells => 104,
+            Constant::FusedSubsteps => 106,
+            Constant::BlockWidth => 107,
+            Constant::PackedIn => 108,
+            Constant::PackedOut => 109,
+            Constant::ReversedOrder => 110,
+        }
+    }
+}
+
+/// A pipeline: a kernel with its constants (the scene's effects and the workgroup size first).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PipelineDesc {
+    /// The kernel.
+    pub kernel: KernelId,
+    /// Label.
+    pub label: String,
+    /// `(constant, value)`, booleans as 0 or 1.
+    pub constants: Vec<(Constant, u32)>,
+}
+
+/// A bind group: a kernel's bindings filled with buffers, in binding order (a dynamic uniform
+/// binds one block of its buffer, the others their whole buffer).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BindGroupDesc {
+    /// The kernel whose layout it follows.
+    pub kernel: KernelId,
+    /// Label.
+    pub label: String,
+    /// One buffer a binding.
+    pub buffers: Vec<BufferId>,
+}
+
+/// The buffers every plan has, which the simulator reads, writes and draws from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StateBuffers {
+    /// [`GpuSimParams`].
+    pub params: BufferId,
+    /// [`GpuSphere`]s.
+    pub spheres: BufferId,
+    /// Positions `vec4` (w 1 free, 0 pinned), m, ping-pong.
+    pub positions: [BufferId; 2],
+    /// Velocities `vec4` (w the state's time), m/s, ping-pong.
+    pub velocities: [BufferId; 2],
+    /// Deepest penetration so far, m, as the bits of an `f32`.
+    pub max_penetration: BufferId,
+}
+
+/// Everything a backend creates for a simulation, and the schedule of its frames.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// Buffers.
+    pub buffers: Vec<BufferDesc>,
+    /// Kernels.
+    pub kernels: Vec<KernelDesc>,
+    /// Pipelines.
+    pub pipelines: Vec<PipelineDesc>,
+    /// Bind groups.
+    pub bind_groups: Vec<BindGroupDesc>,
+    /// The dispatches of a frame.
+    pub schedule: Schedule,
+    /// The state's buffers.
+    pub state: StateBuffers,
+}
+
+/// The bindings 0-6 of both force kernels: the parameters, the spheres, the state read and
+/// written, the deepest penetration.
+const STATE_BINDINGS: [Binding; 7] = [
+    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
+    Binding::Storage { read_only: true },  // spheres
+    Binding::Storage { read_only: true },  // positions in
+    Binding::Storage { read_only: true },  // velocities in
+    Binding::Storage { read_only: false }, // positions out
+    Binding::Storage { read_only: false }, // velocities out
+    Binding::Storage { read_only: false }, // deepest penetration
+];
+
+/// `cloth_step`'s bindings 7-12: RK4's scratch, the packed states in and out, the pin bits.
+const STEP_EXTRA_BINDINGS: [Binding; 6] = [
+    Binding::Storage { read_only: false },
+    Binding::Storage { read_only: true },
+    Binding::Storage { read_only: true },
+    Binding::Storage { read_only: false },
+    Binding::Storage { read_only: false },
+    Binding::Storage { read_only: true },
+];
+
+/// `xpbd`'s bindings: parameters, spheres, constraints, the state in and out, the deepest
+/// penetration, the multipliers, the normal corrections and the colour range.
+const XPBD_BINDINGS: [Binding; 11] = [
+    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
+    Binding::Storage { read_only: true },
+    Binding::Storage { read_only: true },
+    Binding::Storage { read_only: true },
+    Binding::Storage { read_only: true },
+    Binding::Storage { read_only: false },
+    Binding::Storage { read_only: false },
+    Binding::Storage { read_only: false },
+    Binding::Storage { read_only: false },
+    Binding::Storage { read_only: false },
+    Binding::Uniform { size: size_of::<GpuColorRange>() as u64, dynamic: true },
+];
+
+const NAME: [&str; 2] = ["A", "B"];
+
+/// Collects the plan's objects.
+struct Builder<'a> {
+    plan: Plan,
+    scene: &'a Scene,
+    tuning: &'a GpuTuning,
+}
+
+impl Builder<'_> {
+    fn buffer(&mut self, label: &str, usage: BufferUsage, size: u64, contents: Option<Vec<u8>>) -> BufferId {
+        self.plan.buffers.push(BufferDesc { label: format!("cloth {label}"), usage, size: size.max(4), contents });
+        self.plan.buffers.len() - 1
+    }
+
+    fn filled(&mut self, label: &str, usage: BufferUsage, contents: &[u8]) -> BufferId {
+        self.buffer(label, usage, contents.len() as u64, Some(contents.to_vec()))
+    }
+
+    fn kernel(&mut self, shader: Shader, bindings: &[Binding]) -> KernelId {
+        self.plan.kernels.push(KernelDesc { shader, bindings: bindings.to_vec() });
+        self.plan.kernels.len() - 1
+    }
+
+    /// A pipeline with the scene's effects, the workgroup size (but for the tiled kernel, whose
+    /// workgroup is its tile) and the kernel's own constants.
+    fn pipeline(&mut self, kernel: KernelId, label: &str, own: &[(Constant, u32)]) -> PipelineId {
+        let mut constants: Vec<(Constant, u32)> =
+            Effect::ALL.iter().map(|&e| (Constant::Effect(e), u32::from(self.scene.effects.contains(e)))).collect();
+        if !matches!(self.plan.kernels[kernel].shader, Shader::Tiled(_)) {
+            constants.push((Constant::WorkgroupSize, self.tuning.workgroup_size));
+        }
+        constants.extend_from_slice(own);
+        self.plan.pipelines.push(PipelineDesc { kernel, label: format!("cloth {label} pipeline"), constants });
+        self.plan.pipelines.len() - 1
+    }
+
+    fn group(&mut self, kernel: KernelId, label: String, buffers: Vec<BufferId>) -> BindGroupId {
+        self.plan.bind_groups.push(BindGroupDesc { kernel, label: format!("cloth {label}"), buffers });
+        self.plan.bind_groups.len() - 1
+    }
+}
+
+fn invalid(option: &'static str, value: impl ToString, expected: String) -> SimError {
+    SimError::InvalidOption { option, value: value.to_string(), expected }
+}
+
+impl Plan {
+    /// The plan of `scene` on a device with `limits`, as `tuning` asks, for the backend named
+    /// `backend`.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidOption`] for a tuning value that is wrong or that the device cannot
+    /// run, [`SimError::TooLarge`] when a buffer exceeds the device's storage bindings,
+    /// [`SimError::Unsupported`] when the device allows a kernel too few storage buffers.
+    pub fn new(
+        scene: &Scene,
+        tuning: &GpuTuning,
+        limits: &DeviceLimits,
+        backend: &'static str,
+    ) -> Result<Self, SimError> {
+        tuning.check()?;
+        if tuning.workgroup_size > limits.max_invocations {
+            let allowed = format!("at most the {} invocations the device allows a workgroup", limits.max_invocations);
+            return Err(invalid("GpuTuning::workgroup_size", tuning.workgroup_size, allowed));
+        }
+        crate::memory::check_fits(scene, limits.max_storage_binding, "storage buffer (the device's largest binding)")?;
+        let model = ClothModel::new(scene);
+        let v0 = scene.cloth.initial_velocity.map(|x| x as f32);
+        let grid = &model.grid;
+        let positions: Vec<[f32; 4]> = (grid.positions.iter().zip(&grid.pinned))
+            .map(|(p, &pinned)| [p[0] as f32, p[1] as f32, p[2] as f32, if pinned { 0.0 } else { 1.0 }])
+            .collect();
+        let velocities: Vec<[f32; 4]> =
+            grid.pinned.iter().map(|&pinned| if pinned { [0.0; 4] } else { [v0[0], v0[1], v0[2], 0.0] }).collect();
+        let empty = Plan {
+            buffers: Vec::new(),
+            kernels: Vec::new(),
+            pipelines: Vec::new(),
+            bind_groups: Vec::new(),
+            schedule: Schedule { substep: Vec::new(), tiled: None, packed: None },
+            state: StateBuffers { params: 0, spheres: 0, positions: [0; 2], velocities: [0; 2], max_penetration: 0 },
+        };
+        let mut b = Builder { plan: empty, scene, tuning };
+        let (storage, drawable) = (BufferUsage::Storage, BufferUsage::StorageDrawable);
+        let state = StateBuffers {
+            params: b.filled("params", BufferUsage::Uniform, bytemuck::bytes_of(&GpuSimParams::of(scene))),
+            spheres: b.filled("spheres", storage, bytemuck::cast_slice(&GpuSphere::of_scene(scene))),
+            positions: NAME.map(|n| b.filled(&format!("positions {n}"), drawable, bytemuck::cast_slice(&positions))),
+            velocities: NAME.map(|n| b.filled(&format!("velocities {n}"), storage, bytemuck::cast_slice(&velocities))),
+            max_penetration: b.buffer("max penetration", storage, 4, None),
+        };
+        b.plan.state = state;
+        b.plan.schedule = match scene.integrator {
+            Integrator::Xpbd => xpbd(&mut b, &model, limits),
+            _ => force_based(&mut b, &positions, &velocities, limits)?,
+        };
+        let plan = b.plan;
+        for kernel in &plan.kernels {
+            let needed = kernel.bindings.iter().filter(|x| matches!(x, Binding::Storage { .. })).count() as u32;
+            if needed > limits.storage_buffers_per_stage {
+                return Err(SimError::Unsupported {
+                    backend,
+                    what: format!(
+                        "devices that allow fewer than {needed} storage buffers per kernel (this one allows {})",
+                        limits.storage_buffers_per_stage
+                    ),
+                    fix: "use another adapter, or the cpu backend".into(),
+                });
+            }
+        }
+        Ok(plan)
+    }
+}
+
+/// Semi-implicit Euler, velocity Verlet and RK4 (`cloth_step`, and `cloth_step_tiled`).
+fn force_based(
+    b: &mut Builder,
+    positions: &[[f32; 4]],
+    velocities: &[[f32; 4]],
+    limits: &DeviceLimits,
+) -> Result<Schedule, SimError> {
+    let (scene, tuning) = (b.scene, b.tuning);
+    let [nx, ny] = scene.cloth.resolution;
+    let n = positions.len() as u64;
+    let storage = BufferUsage::Storage;
+    let s = b.plan.state;
+    let (p, v) = (s.positions, s.velocities);
+    let tile = TileConfig::choose(tuning, scene.integrator, nx * ny, limits)?;
+    let rk4 = scene.integrator == Integrator::RungeKutta4;
+    let rk4_scratch = b.buffer("RK4 scratch", storage, if rk4 { 64 * n } else { 64 }, None);
+    // Placeholders for the packed bindings of the passes that do not use them: a read-only one,
+    // and one for each written binding (a binding must not alias another of the same dispatch).
+    let read = b.buffer("packed-state placeholder, read", storage, 64, None);
+    let xv_out = b.buffer("packed-state placeholder, (x, v.x) out", storage, 64, None);
+    let v_out = b.buffer("packed-state placeholder, (v.y, v.z) out", storage, 64, None);
+    let unpacked = [read, read, xv_out, v_out, read];
+    let kernel = b.kernel(Shader::Step, &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS].concat());
+    let blocks = BlockGrid::new(tuning, nx, ny, limits.max_workgroups_per_dimension);
+    let w = blocks.width;
+    let common = [s.params, s.spheres];
+    let group = |b: &mut Builder, label: String, [x_in, v_in, x_out, v_out]: [BufferId; 4], packed: [BufferId; 5]| {
+        let buffers = [&common[..], &[x_in, v_in, x_out, v_out, s.max_penetration, rk4_scratch], &packed[..]].concat();
+        b.group(kernel, label, buffers)
+    };
+    let pass = |pipeline, groups| Pass { pipeline, groups, workgroups: blocks.workgroups, dynamic_offset: None };
+    let step = |stage: u32| [(Constant::Stage, stage), (Constant::BlockWidth, w)];
+    let mut schedule = Schedule { substep: Vec::new(), tiled: None, packed: None };
+    match scene.integrator {
+        Integrator::SemiImplicitEuler => {
+            let groups = [0, 1].map(|k| {
+                group(b, format!("substep {} -> {}", NAME[k], NAME[1 - k]), [p[k], v[k], p[1 - k], v[1 - k]], unpacked)
+            });
+            let pipeline = b.pipeline(kernel, "Euler substep", &step(0));
+            schedule.substep.push(pass(pipeline, groups));
+            if let Some(tile) = tile {
+                let tiled = b.kernel(Shader::Tiled(tile), &STATE_BINDINGS);
+                let constants = [
+                    (Constant::TileWidth, tile.width),
+                    (Constant::TileHeight, tile.height),
+                    (Constant::TileCells, tile.cells()),
+                    (Constant::FusedSubsteps, tile.substeps),
+                ];
+                let pipeline = b.pipeline(tiled, "tiled Euler substeps", &constants);
+                let groups = [0, 1].map(|k| {
+                    let buffers = vec![s.params, s.spheres, p[k], v[k], p[1 - k], v[1 - k], s.max_penetration];
+                    b.group(tiled, format!("tiled substeps {} -> {}", NAME[k], NAME[1 - k]), buffers)
+                });
+                let workgroups = tile.workgroups(nx, ny);
+                schedule.tiled = Some(TiledPass {
+                    pass: Pass { pipeline, groups, workgroups, dynamic_offset: None },
+                    substeps: tile.substeps,
+                });
+            } else if tuning.packed_state {
+                schedule.packed = Some(packed(b, &group, kernel, w, blocks.workgroups, positions));
+            }
+        }
+        Integrator::VelocityVerlet => {
+            // The half-step velocities, and a sink for the positions the second kick does not
+            // write.
+            let v_half = b.filled("velocities (Verlet half step)", storage, bytemuck::cast_slice(velocities));
+            let sink = b.buffer("positions sink (Verlet second kick)", storage, 16, None);
+            let first = [0, 1].map(|k| {
+                group(
+                    b,
+                    format!("Verlet kick and drift {} -> {}", NAME[k], NAME[1 - k]),
+                    [p[k], v[k], p[1 - k], v_half],
+                    unpacked,
+                )
+            });
+            let second = [0, 1].map(|k| {
+                group(b, format!("Verlet second kick -> {}", NAME[1 - k]), [p[1 - k], v_half, sink, v[1 - k]], unpacked)
+            });
+            let kick_drift = b.pipeline(kernel, "Verlet kick and drift", &step(1));
+            let kick = b.pipeline(kernel, "Verlet second kick", &step(2));
+            schedule.substep = vec![pass(kick_drift, first), pass(kick, second)];
+        }
+        _ => {
+            // RK4's stage states alternate between a scratch state S and the output 1 - k:
+            // k -> S -> 1-k -> S -> 1-k. S starts as the initial state, so its w (free or pinned)
+            // is right from the first stage.
+            let s_x = b.filled("RK4 stage positions", storage, bytemuck::cast_slice(positions));
+            let s_v = b.filled("RK4 stage velocities", storage, bytemuck::cast_slice(velocities));
+            for stage in 1..=4u32 {
+                let groups = [0, 1].map(|k| {
+                    let buffers = match stage {
+                        1 => [p[k], v[k], s_x, s_v],
+                        3 => [p[1 - k], v[1 - k], s_x, s_v],
+                        _ => [s_x, s_v, p[1 - k], v[1 - k]],
+                    };
+                    group(b, format!("RK4 stage {stage} (state {})", NAME[k]), buffers, unpacked)
+                });
+                let pipeline = b.pipeline(kernel, &format!("RK4 stage {stage}"), &step(2 + stage));
+                schedule.substep.push(pass(pipeline, groups));
+            }
+        }
+    }
+    Ok(schedule)
+}
+
+/// Semi-implicit Euler's packed passes (`geometry`'s packed state).
+fn packed(
+    b: &mut Builder,
+    group: &impl Fn(&mut Builder, String, [BufferId; 4], [BufferId; 5]) -> BindGroupId,
+    kernel: KernelId,
+    width: u32,
+    workgroups: [u32; 2],
+    positions: &[[f32; 4]],
+) -> PackedPasses {
+    let storage = BufferUsage::Storage;
+    let [xv_bytes, v_bytes] = geometry::packed_buffer_bytes(positions.len() as u64);
+    let xv = NAME.map(|n| b.buffer(&format!("packed (x, v.x) {n}"), storage, xv_bytes, None));
+    let pv = NAME.map(|n| b.buffer(&format!("packed (v.y, v.z) and time {n}"), storage, v_bytes, None));
+    let pins = b.filled("pin bits", storage, bytemuck::cast_slice(&geometry::pin_bits(positions)));
+    let alternate = width > 0 && geometry::alternates_order(b.tuning.block_order, positions.len() as u64);
+    let pipeline = |b: &mut Builder, label: &str, packed_in: u32, packed_out: u32, reversed: bool| {
+        let constants = [
+            (Constant::Stage, 0),
+            (Constant::BlockWidth, width),
+            (Constant::PackedIn, packed_in),
+            (Constant::PackedOut, packed_out),
+            (Constant::ReversedOrder, u32::from(reversed)),
+        ];
+        let label = if reversed {
+            format!("Euler substep, {label}, blocks backward")
+        } else {
+            format!("Euler substep, {label}")
+        };
+        b.pipeline(kernel, &label, &constants)
+    };
+    let first_pipeline = pipeline(b, "vec4 -> packed", 0, 1, false);
+    let both = |b: &mut Builder, label: &str, packed_in: u32, packed_out: u32| {
+        let forward = pipeline(b, label, packed_in, packed_out, false);
+        [forward, if alternate { pipeline(b, label, packed_in, packed_out, true) } else { forward }]
+    };
+    let middle_pipelines = both(b, "packed -> packed", 1, 1);
+    let last_pipelines = both(b, "packed -> vec4", 1, 0);
+    let s = b.plan.state;
+    let (p, v) = (s.positions, s.velocities);
+    // Packed state m in, 1 - m out; the vec4 bindings a pass does not use hold state buffers it
+    // does not touch either.
+    let io = |m: usize| [xv[m], pv[m], xv[1 - m], pv[1 - m], pins];
+    let vec4 = |k: usize| [p[k], v[k], p[1 - k], v[1 - k]];
+    // `first` writes packed state A, reading nothing packed (B sits in the input bindings).
+    let first = [0, 1].map(|k| group(b, format!("packed substep {} -> packed A", NAME[k]), vec4(k), io(1)));
+    let middle = [0, 1]
+        .map(|m| group(b, format!("packed substep packed {} -> packed {}", NAME[m], NAME[1 - m]), vec4(0), io(m)));
+    let last = [0, 1].map(|k| {
+        [0, 1].map(|m| group(b, format!("packed substep packed {} -> {}", NAME[m], NAME[1 - k]), vec4(k), io(m)))
+    });
+    PackedPasses { first_pipeline, middle_pipelines, last_pipelines, first, middle, last, workgroups }
+}
+
+/// XPBD (`xpbd`): predict; per iteration one dispatch per non-empty colour and one for the
+/// spheres; finish.
+fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule {
+    let (scene, storage) = (b.scene, BufferUsage::Storage);
+    let colors = model.spring_colors();
+    let mut constraints: Vec<GpuConstraint> = (colors.order.iter().map(|&i| &model.springs[i as usize]))
+        .map(|s| GpuConstraint { a: s.a, b: s.b, kind: s.kind as u32, rest_length: s.rest_length as f32 })
+        .collect();
+    if constraints.is_empty() {
+        constraints.push(GpuConstraint::default());
+    }
+    let range = |color: usize, iteration: u32| GpuColorRange {
+        first: colors.first[color],
+        count: colors.first[color + 1] - colors.first[color],
+        first_iteration: u32::from(iteration == 0),
+        pad: 0,
+    };
+    let mut ranges = vec![0u8; 2 * COLOR_COUNT * COLOR_RANGE_STRIDE as usize];
+    for (iteration, color) in [0, 1].into_iter().flat_map(|i| (0..COLOR_COUNT).map(move |c| (i, c))) {
+        let at = GpuColorRange::offset(color, iteration) as usize;
+        ranges[at..at + size_of::<GpuColorRange>()].copy_from_slice(bytemuck::bytes_of(&range(color, iteration)));
+    }
+    let n = model.vertex_count() as u64;
+    let constraint_buffer = b.filled("XPBD constraints", storage, bytemuck::cast_slice(&constraints));
+    let lambdas = b.buffer("XPBD multipliers", storage, 4 * constraints.len() as u64, None);
+    let corrections = b.buffer("XPBD normal corrections", storage, 4 * n, None);
+    let range_buffer = b.filled("XPBD colour ranges", BufferUsage::Uniform, &ranges);
+    let kernel = b.kernel(Shader::Xpbd, &XPBD_BINDINGS);
+    let s = b.plan.state;
+    let groups = [0, 1].map(|k| {
+        let (p, v) = (s.positions, s.velocities);
+        let buffers = vec![s.params, s.spheres, constraint_buffer, p[k], v[k], p[1 - k], v[1 - k]];
+        let buffers = [buffers, vec![s.max_penetration, lambdas, corrections, range_buffer]].concat();
+        b.group(kernel, format!("XPBD {} -> {}", NAME[k], NAME[1 - k]), buffers)
+    });
+    let pipelines = ["predict", "project one colour", "project the spheres", "finish"]
+        .iter()
+        .enumerate()
+        .map(|(pass, what)| b.pipeline(kernel, &format!("XPBD {what}"), &[(Constant::XpbdPass, pass as u32)]))
+        .collect::<Vec<_>>();
+    let (threads, max) = (b.tuning.workgroup_size, limits.max_workgroups_per_dimension);
+    let vertices = spilled_workgroups(n as u32, threads, max);
+    let pass = |pipeline: usize, workgroups, offset| Pass {
+        pipeline: pipelines[pipeline],
+        groups,
+        workgroups,
+        dynamic_offset: Some(offset),
+    };
+    let mut substep = vec![pass(0, vertices, 0)];
+    let contact = scene.effects.contains(Effect::SphereContact) && !scene.spheres.is_empty();
+    for iteration in 0..XPBD_ITERATIONS {
+        for color in 0..COLOR_COUNT {
+            let count = range(color, iteration).count;
+            if count > 0 {
+                substep.push(pass(1, spilled_workgroups(count, threads, max), GpuColorRange::offset(color, iteration)));
+            }
+        }
+        if contact {
+            substep.push(pass(2, vertices, 0));
+        }
+    }
+    substep.push(pass(3, vertices, 0));
+    Schedule { substep, tiled: None, packed: None }
+}

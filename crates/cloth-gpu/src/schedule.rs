@@ -1,0 +1,146 @@
+//! The order of a frame's dispatches, written once for both backends.
+//!
+//! | integrator | dispatches per substep |
+//! |---|---|
+//! | semi-implicit Euler | 1 (`cloth_step`, `STAGE = 0`): on the packed state inside a submission, or fused by the tiled kernel |
+//! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
+//! | RK4 | 4: `STAGE = 3..=6`, one per stage |
+//! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the spheres); finish |
+//!
+//! Every substep reads the state buffer `k` that is current and leaves the new state in buffer
+//! `1 − k`; each pass has a bind group per `k`.
+
+use crate::plan::{BindGroupId, PipelineId};
+
+/// One dispatch: a pipeline, its bind group (with the dynamic offset of the layout's dynamic
+/// uniform, where it has one) and its workgroups along x and y.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dispatch {
+    /// Index into the plan's pipelines.
+    pub pipeline: PipelineId,
+    /// Index into the plan's bind groups.
+    pub bind_group: BindGroupId,
+    /// Workgroups along x and y.
+    pub workgroups: [u32; 2],
+    /// The dynamic offset, bytes.
+    pub dynamic_offset: Option<u32>,
+}
+
+/// A dispatch of every substep, with its bind group when state buffer `k` is current.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Pass {
+    /// Index into the plan's pipelines.
+    pub pipeline: PipelineId,
+    /// The bind group when state `k` is current.
+    pub groups: [BindGroupId; 2],
+    /// Workgroups along x and y.
+    pub workgroups: [u32; 2],
+    /// The dynamic offset, bytes.
+    pub dynamic_offset: Option<u32>,
+}
+
+impl Pass {
+    fn on(&self, k: usize) -> Dispatch {
+        Dispatch {
+            pipeline: self.pipeline,
+            bind_group: self.groups[k],
+            workgroups: self.workgroups,
+            dynamic_offset: self.dynamic_offset,
+        }
+    }
+}
+
+/// Semi-implicit Euler's substeps on its packed state: a submission of `n ≥ 2` substeps runs
+/// `first` (the `vec4` state `k` → packed state 0), `n − 2` times `middle` (packed `m` → packed
+/// `1 − m`) and `last` (packed `m` → the `vec4` state `1 − k`), so the `vec4` state flips once a
+/// submission. Substep `s` takes the blocks backward when `s` is odd (`[forward, backward]`, the
+/// same pipeline twice unless the order alternates).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PackedPasses {
+    /// `first`'s pipeline.
+    pub first_pipeline: PipelineId,
+    /// `middle`'s pipelines, forward and backward.
+    pub middle_pipelines: [PipelineId; 2],
+    /// `last`'s pipelines, forward and backward.
+    pub last_pipelines: [PipelineId; 2],
+    /// `first`'s bind group when the `vec4` state `k` is current.
+    pub first: [BindGroupId; 2],
+    /// `middle`'s bind group reading packed state `m`.
+    pub middle: [BindGroupId; 2],
+    /// `last`'s bind group, `last[k][m]`.
+    pub last: [[BindGroupId; 2]; 2],
+    /// Workgroups along x and y.
+    pub workgroups: [u32; 2],
+}
+
+/// The tiled kernel's pass, which advances `substeps` substeps at once.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TiledPass {
+    /// The dispatch, from state `k` to `1 − k`.
+    pub pass: Pass,
+    /// Substeps per dispatch.
+    pub substeps: u32,
+}
+
+/// The dispatches of a simulation's frames.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Schedule {
+    /// The dispatches of one substep, in order.
+    pub substep: Vec<Pass>,
+    /// Semi-implicit Euler's fused substeps, where the tiled kernel runs.
+    pub tiled: Option<TiledPass>,
+    /// Semi-implicit Euler's packed passes, where they run (never with `tiled`).
+    pub packed: Option<PackedPasses>,
+}
+
+impl Schedule {
+    /// Appends the dispatches of `substeps` substeps starting from state `current` to `out`, and
+    /// returns the state current after them.
+    pub fn frame(&self, substeps: u64, current: usize, out: &mut Vec<Dispatch>) -> usize {
+        if let Some(p) = &self.packed
+            && substeps >= 2
+        {
+            let at = |pipeline, bind_group| Dispatch {
+                pipeline,
+                bind_group,
+                workgroups: p.workgroups,
+                dynamic_offset: None,
+            };
+            out.push(at(p.first_pipeline, p.first[current]));
+            let mut m = 0;
+            for s in 1..substeps - 1 {
+                out.push(at(p.middle_pipelines[(s % 2) as usize], p.middle[m]));
+                m = 1 - m;
+            }
+            out.push(at(p.last_pipelines[((substeps - 1) % 2) as usize], p.last[current][m]));
+            return 1 - current;
+        }
+        let (mut k, mut left) = (current, substeps);
+        while left > 0 {
+            // Several substeps in one tiled dispatch where they fit, the rest one at a time.
+            match &self.tiled {
+                Some(tiled) if left >= tiled.substeps as u64 => {
+                    out.push(tiled.pass.on(k));
+                    left -= tiled.substeps as u64;
+                }
+                _ => {
+                    out.extend(self.substep.iter().map(|pass| pass.on(k)));
+                    left -= 1;
+                }
+            }
+            k = 1 - k;
+        }
+        k
+    }
+
+    /// Substeps one dispatch advances: the tiled kernel's, else 1.
+    pub fn fused_substeps(&self) -> u32 {
+        self.tiled.as_ref().map_or(1, |t| t.substeps)
+    }
+
+    /// Bytes a vertex of the state the substeps hand each other.
+    pub fn state_bytes(&self) -> u32 {
+        let packed = self.packed.is_some();
+        (if packed { crate::geometry::PACKED_VERTEX_BYTES } else { crate::geometry::VEC4_VERTEX_BYTES }) as u32
+    }
+}

@@ -1,0 +1,334 @@
+//! [`GpuSimulator`]: the [`Simulator`] of every GPU backend, written once over [`GpuBackend`],
+//! the few calls in which the backends differ (creating objects, recording a frame, copying
+//! bytes in and out).
+
+use cloth_core::{AdvanceCounts, ClothState, Diagnostics, Scene, SimError, Simulator};
+
+use crate::geometry::DeviceLimits;
+use crate::layout::{GpuSimParams, GpuSphere};
+use crate::plan::{BindGroupDesc, BufferDesc, KernelDesc, PipelineDesc, Plan, StateBuffers};
+use crate::schedule::{Dispatch, Schedule};
+use crate::tuning::GpuTuning;
+
+/// A frame to record: its dispatches, in order, and the objects they name.
+pub struct Frame<'a, B: GpuBackend> {
+    /// The dispatches ([`Schedule::frame`]).
+    pub dispatches: &'a [Dispatch],
+    /// The pipelines, by [`crate::plan::PipelineId`].
+    pub pipelines: &'a [B::Pipeline],
+    /// The bind groups, by [`crate::plan::BindGroupId`].
+    pub bind_groups: &'a [B::BindGroup],
+}
+
+/// What a GPU API provides the simulator: objects made from the plan's descriptions, one
+/// submission a frame, and copies in and out.
+pub trait GpuBackend: Sized {
+    /// A device buffer.
+    type Buffer: Clone;
+    /// A shader module with its binding layout.
+    type Kernel;
+    /// A compute pipeline.
+    type Pipeline;
+    /// A bind group (descriptor set).
+    type BindGroup;
+    /// Backend name used by the tools.
+    const NAME: &'static str;
+
+    /// Opens a device on the adapter `tuning.adapter` names (the best one without).
+    ///
+    /// # Errors
+    /// [`SimError::Unavailable`] when there is none.
+    fn open(tuning: &GpuTuning) -> Result<Self, SimError>;
+    /// The device, in words.
+    fn adapter_name(&self) -> String;
+    /// What the device allows.
+    fn limits(&self) -> DeviceLimits;
+    /// Runs `create`, which creates a simulation's objects, then uploads what they hold and
+    /// reports any creation call that failed without saying so.
+    ///
+    /// # Errors
+    /// What `create` returns, or [`SimError::Device`].
+    fn setup<T>(&mut self, create: impl FnOnce(&mut Self) -> Result<T, SimError>) -> Result<T, SimError>;
+    /// Creates a buffer with the description's contents.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the device cannot.
+    fn create_buffer(&mut self, desc: &BufferDesc) -> Result<Self::Buffer, SimError>;
+    /// Creates a kernel.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the module does not load.
+    fn create_kernel(&mut self, desc: &KernelDesc) -> Result<Self::Kernel, SimError>;
+    /// Creates a pipeline of a kernel.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the device cannot.
+    fn create_pipeline(
+        &mut self,
+        kernel: &Self::Kernel,
+        desc: &PipelineDesc,
+        tuning: &GpuTuning,
+    ) -> Result<Self::Pipeline, SimError>;
+    /// Creates a bind group of a kernel with `buffers`, one a binding.
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the device cannot.
+    fn create_bind_group(
+        &mut self,
+        kernel: &Self::Kernel,
+        desc: &BindGroupDesc,
+        buffers: &[&Self::Buffer],
+    ) -> Result<Self::BindGroup, SimError>;
+    /// Records the frame into one command buffer (with a memory barrier between dispatches, and
+    /// the timer's timestamps when timing is on) and submits it without waiting.
+    ///
+    /// # Errors
+    /// [`SimError::Device`].
+    fn submit(&mut self, frame: Frame<'_, Self>) -> Result<(), SimError>;
+    /// Writes `bytes` at the start of `buffer`, before the next submission runs.
+    ///
+    /// # Errors
+    /// [`SimError::Device`].
+    fn write(&mut self, buffer: &Self::Buffer, bytes: &[u8]) -> Result<(), SimError>;
+    /// Reads the first `bytes` of each buffer, after everything submitted, with one host wait.
+    ///
+    /// # Errors
+    /// [`SimError::Device`].
+    fn read(&mut self, sources: &[(&Self::Buffer, u64)]) -> Result<Vec<Vec<u8>>, SimError>;
+    /// Turns the timestamps of each submission on or off; whether they are on.
+    fn set_timing(&mut self, on: bool) -> bool;
+    /// Whether the timer holds as many submissions as it can: it must be read before the next.
+    fn timer_full(&self) -> bool;
+    /// GPU seconds of the submissions timed since the last call (one host wait).
+    ///
+    /// # Errors
+    /// [`SimError::Device`].
+    fn take_timer_seconds(&mut self) -> Result<f64, SimError>;
+}
+
+/// A cloth simulated on a GPU through backend `B`.
+pub struct GpuSimulator<B: GpuBackend> {
+    scene: Scene,
+    tuning: GpuTuning,
+    buffers: Vec<B::Buffer>,
+    /// Bytes of each buffer.
+    sizes: Vec<u64>,
+    pipelines: Vec<B::Pipeline>,
+    bind_groups: Vec<B::BindGroup>,
+    schedule: Schedule,
+    state: StateBuffers,
+    /// The last frame's dispatches (kept, so a frame allocates nothing).
+    dispatches: Vec<Dispatch>,
+    /// Which of the two state buffers holds the current state.
+    current: usize,
+    /// `w` of each vertex's position: 1 free, 0 pinned.
+    free: Vec<f32>,
+    timing: bool,
+    /// GPU seconds read from a full timer and not yet taken.
+    pending_seconds: f64,
+    time_s: f64,
+    substeps_run: u64,
+    last_advance: AdvanceCounts,
+    /// Last, so that it is dropped after every object made on it.
+    backend: B,
+}
+
+impl<B: GpuBackend> GpuSimulator<B> {
+    /// Creates the simulator on its own device, as `tuning` asks.
+    ///
+    /// # Errors
+    /// As [`GpuSimulator::on_backend`], and [`SimError::Unavailable`] without an adapter.
+    pub fn with_tuning(scene: &Scene, tuning: &GpuTuning) -> Result<Self, SimError> {
+        scene.validate()?;
+        tuning.check()?;
+        Self::on_backend(scene, B::open(tuning)?, tuning)
+    }
+
+    /// Creates the simulator on an open device (e.g. a renderer's, to draw from
+    /// [`GpuSimulator::position_buffer`] without a read-back). `tuning.adapter` is not used.
+    ///
+    /// # Errors
+    /// [`SimError::Scene`] for an invalid scene, [`SimError::InvalidOption`] for a tuning value
+    /// that is wrong or that the device cannot run, [`SimError::TooLarge`] when a buffer exceeds
+    /// the device's limits, [`SimError::Unsupported`] when the device lacks what a kernel needs,
+    /// [`SimError::Device`] when creating the GPU objects fails.
+    pub fn on_backend(scene: &Scene, mut backend: B, tuning: &GpuTuning) -> Result<Self, SimError> {
+        scene.validate()?;
+        let plan = Plan::new(scene, tuning, &backend.limits(), B::NAME)?;
+        let (buffers, pipelines, bind_groups) = backend.setup(|backend| {
+            let buffers = plan.buffers.iter().map(|d| backend.create_buffer(d)).collect::<Result<Vec<_>, _>>()?;
+            let kernels = plan.kernels.iter().map(|d| backend.create_kernel(d)).collect::<Result<Vec<_>, _>>()?;
+            let pipelines = (plan.pipelines.iter())
+                .map(|d| backend.create_pipeline(&kernels[d.kernel], d, tuning))
+                .collect::<Result<Vec<_>, _>>()?;
+            let bind_groups = (plan.bind_groups.iter())
+                .map(|d| {
+                    let bound: Vec<&B::Buffer> = d.buffers.iter().map(|&b| &buffers[b]).collect();
+                    backend.create_bind_group(&kernels[d.kernel], d, &bound)
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok((buffers, pipelines, bind_groups))
+        })?;
+        let positions = plan.buffers[plan.state.positions[0]].contents.as_deref().unwrap_or_default();
+        Ok(Self {
+            scene: scene.clone(),
+            tuning: tuning.clone(),
+            sizes: plan.buffers.iter().map(|b| b.size).collect(),
+            free: bytemuck::cast_slice::<u8, [f32; 4]>(positions).iter().map(|p| p[3]).collect(),
+            buffers,
+            pipelines,
+            bind_groups,
+            schedule: plan.schedule,
+            state: plan.state,
+            dispatches: Vec::new(),
+            current: 0,
+            timing: false,
+            pending_seconds: 0.0,
+            time_s: 0.0,
+            substeps_run: 0,
+            last_advance: AdvanceCounts::default(),
+            backend,
+        })
+    }
+
+    /// The buffer holding the current positions (`vec4<f32>` per vertex, xyz in m), valid until
+    /// the next `advance`; drawable as a vertex buffer on the same device.
+    pub fn position_buffer(&self) -> &B::Buffer {
+        &self.buffers[self.state.positions[self.current]]
+    }
+
+    /// The buffer holding the current velocities (`vec4<f32>` per vertex, xyz in m/s), valid
+    /// until the next `advance`.
+    pub fn velocity_buffer(&self) -> &B::Buffer {
+        &self.buffers[self.state.velocities[self.current]]
+    }
+
+    /// The backend, with its device.
+    pub fn backend(&self) -> &B {
+        &self.backend
+    }
+
+    /// The tuning the simulator was created with.
+    pub fn tuning(&self) -> &GpuTuning {
+        &self.tuning
+    }
+
+    /// The schedule of its frames.
+    pub fn schedule(&self) -> &Schedule {
+        &self.schedule
+    }
+
+    fn read_buffers(&mut self, ids: &[usize]) -> Result<Vec<Vec<u8>>, SimError> {
+        let sources: Vec<(&B::Buffer, u64)> = ids.iter().map(|&id| (&self.buffers[id], self.sizes[id])).collect();
+        self.backend.read(&sources)
+    }
+}
+
+impl<B: GpuBackend> Simulator for GpuSimulator<B> {
+    fn new(scene: &Scene) -> Result<Self, SimError> {
+        Self::with_tuning(scene, &GpuTuning::default())
+    }
+
+    fn backend_name(&self) -> &'static str {
+        B::NAME
+    }
+
+    fn adapter_name(&self) -> String {
+        self.backend.adapter_name()
+    }
+
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    fn fused_substeps(&self) -> u32 {
+        self.schedule.fused_substeps()
+    }
+
+    fn substep_state_bytes(&self) -> Option<u32> {
+        Some(self.schedule.state_bytes())
+    }
+
+    fn advance(&mut self, frames: u32) -> Result<(), SimError> {
+        self.last_advance = AdvanceCounts { frames, submissions: 0, host_waits: 0 };
+        let substeps = self.scene.substeps_per_frame() as u64 * frames as u64;
+        if substeps == 0 {
+            return Ok(());
+        }
+        if self.timing && self.backend.timer_full() {
+            // Only after as many advances as the timer holds without `take_gpu_seconds`: keep
+            // the measurements.
+            self.pending_seconds += self.backend.take_timer_seconds()?;
+            self.last_advance.host_waits = 1;
+        }
+        self.dispatches.clear();
+        self.current = self.schedule.frame(substeps, self.current, &mut self.dispatches);
+        let frame = Frame { dispatches: &self.dispatches, pipelines: &self.pipelines, bind_groups: &self.bind_groups };
+        self.backend.submit(frame)?;
+        self.last_advance.submissions = 1;
+        // The clock advances substep by substep, as the kernels' `velocity.w` does.
+        let dt = self.scene.substep_dt();
+        for _ in 0..substeps {
+            self.time_s += dt;
+        }
+        self.substeps_run += substeps;
+        Ok(())
+    }
+
+    fn update_parameters(&mut self, scene: &Scene) -> Result<(), SimError> {
+        if let Some(what) = self.scene.rebuild_reason(scene) {
+            return Err(SimError::RebuildRequired { what });
+        }
+        scene.validate()?;
+        let (params, spheres) = (&self.buffers[self.state.params], &self.buffers[self.state.spheres]);
+        self.backend.write(params, bytemuck::bytes_of(&GpuSimParams::of(scene)))?;
+        self.backend.write(spheres, bytemuck::cast_slice(&GpuSphere::of_scene(scene)))?;
+        self.scene = scene.clone();
+        Ok(())
+    }
+
+    fn read_state(&mut self) -> Result<ClothState, SimError> {
+        let k = self.current;
+        let bytes = self.read_buffers(&[self.state.positions[k], self.state.velocities[k]])?;
+        let xyz = |b: &[u8]| bytemuck::cast_slice::<u8, [f32; 4]>(b).iter().map(|q| [q[0], q[1], q[2]]).collect();
+        Ok(ClothState { time_s: self.time_s, positions: xyz(&bytes[0]), velocities: xyz(&bytes[1]) })
+    }
+
+    fn write_state(&mut self, state: &ClothState) -> Result<(), SimError> {
+        cloth_core::simulator::check_state_size(self.free.len(), state)?;
+        let positions: Vec<[f32; 4]> =
+            state.positions.iter().zip(&self.free).map(|(p, &w)| [p[0], p[1], p[2], w]).collect();
+        // w: the state's time, which moving pins, moving spheres and gusts read on the GPU.
+        let time = state.time_s as f32;
+        let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], time]).collect();
+        let k = self.current;
+        let (p, v) = (&self.buffers[self.state.positions[k]], &self.buffers[self.state.velocities[k]]);
+        self.backend.write(p, bytemuck::cast_slice(&positions))?;
+        self.backend.write(v, bytemuck::cast_slice(&velocities))?;
+        self.time_s = state.time_s;
+        Ok(())
+    }
+
+    fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
+        let bytes = self.read_buffers(&[self.state.max_penetration])?;
+        let bits = u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]);
+        Ok(Diagnostics { max_penetration_m: f32::from_bits(bits) as f64, substeps_run: self.substeps_run })
+    }
+
+    fn last_advance_counts(&self) -> AdvanceCounts {
+        self.last_advance
+    }
+
+    fn set_gpu_timing(&mut self, on: bool) -> bool {
+        self.timing = self.backend.set_timing(on);
+        self.timing
+    }
+
+    fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {
+        if !self.timing {
+            return Ok(None);
+        }
+        let seconds = self.backend.take_timer_seconds()? + std::mem::take(&mut self.pending_seconds);
+        Ok(Some(seconds))
+    }
+}

@@ -1,0 +1,53 @@
+// The structs the host shares with the shaders: the WGSL view of crates/cloth-gpu/src/layout.rs,
+// declared once here and prepended to every WGSL module that uses them (the compute kernels and
+// the inspector's render.wgsl). A test reflects every such module against the Rust types.
+
+// cloth_gpu::layout::GpuSimParams (160 bytes).
+struct SimParams {
+    gravity: vec4<f32>,      // m/s² (xyz)
+    stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
+    damping: vec4<f32>,      // N·s/m by spring kind
+    vertex_mass: f32,        // kg
+    substep_dt: f32,         // s
+    air_drag: f32,           // 1/s
+    vertex_count: u32,
+    sphere_count: u32,
+    grid_nx: u32,
+    grid_ny: u32,
+    effects: u32,
+    wind: vec4<f32>,         // mean wind velocity, m/s (xyz); w: coefficient × area per vertex, N·s/m
+    gust: vec4<f32>,         // x: relative amplitude, y: angular frequency, rad/s
+    pin_velocity: vec4<f32>, // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
+    pin_amplitude: vec4<f32>,// pins' oscillation amplitude, m (xyz)
+    rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
+}
+
+// cloth_gpu::layout::GpuSphere (64 bytes).
+struct Sphere {
+    center: vec3<f32>,       // m, at time 0
+    radius: f32,             // m
+    stiffness: f32,          // k_c, N/m
+    friction: f32,           // c_f
+    damping: f32,            // N·s/m
+    pad: f32,
+    velocity: vec3<f32>,     // steady velocity, m/s (MovingSpheres)
+    omega: f32,              // angular frequency of the oscillation, rad/s
+    amplitude: vec3<f32>,    // amplitude of the oscillation, m
+    pad2: f32,
+}
+
+// cloth_gpu::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
+struct Constraint {
+    a: u32,
+    b: u32,
+    kind: u32,
+    rest_length: f32,        // m
+}
+
+// cloth_gpu::layout::GpuColorRange (16 bytes): the constraints of one XPBD colour.
+struct ColorRange {
+    first: u32,
+    count: u32,
+    first_iteration: u32,    // 1: the multipliers start from 0
+    pad: u32,
+}

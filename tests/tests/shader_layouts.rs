@@ -1,0 +1,205 @@
+//! Every shader module that uses a struct shared with the host declares it with the byte layout
+//! of the Rust type (`cloth_gpu::layout::struct_layouts`), and declares every pipeline constant
+//! the plan sets on it: the WGSL modules by naga's reflection, the SPIR-V modules by reading
+//! their decorations (naga's SPIR-V reader cannot read specialization-constant expressions).
+
+use std::collections::HashMap;
+
+use cloth_core::{Integrator, Scene};
+use cloth_gpu::plan::{Constant, Plan, Shader};
+use cloth_gpu::{DeviceLimits, GpuTuning, Tiling};
+
+/// The view's shader, as the inspector builds it.
+const RENDER_SHADER: &str =
+    concat!(include_str!("../../shaders/wgsl/layout.wgsl"), include_str!("../../shaders/wgsl/render.wgsl"));
+
+/// Every WGSL module, by file name.
+fn wgsl_modules() -> Vec<(&'static str, String)> {
+    let tiled = cloth_wgpu::tiled_shader_source(&cloth_gpu::geometry::DEFAULT_TILES[0]);
+    vec![
+        ("cloth_step.wgsl", cloth_wgpu::STEP_SHADER.to_string()),
+        ("cloth_step_tiled.wgsl", tiled),
+        ("xpbd.wgsl", cloth_wgpu::XPBD_SHADER.to_string()),
+        ("render.wgsl", RENDER_SHADER.to_string()),
+    ]
+}
+
+/// Every SPIR-V module, by file name.
+const SPIRV_MODULES: [(&str, &[u8]); 3] = [
+    ("cloth_step.spv", cloth_vulkano::STEP_SPIRV),
+    ("cloth_step_tiled.spv", cloth_vulkano::TILED_STEP_SPIRV),
+    ("xpbd.spv", cloth_vulkano::XPBD_SPIRV),
+];
+
+#[test]
+fn every_wgsl_module_declares_the_shared_structs_as_the_host_lays_them_out() {
+    for (file, source) in wgsl_modules() {
+        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{file}: {e}"));
+        for layout in cloth_gpu::layout::struct_layouts() {
+            let name = layout.shader_name;
+            let found = module.types.iter().find_map(|(_, ty)| match &ty.inner {
+                naga::TypeInner::Struct { members, span } if ty.name.as_deref() == Some(name) => Some((members, *span)),
+                _ => None,
+            });
+            let Some((members, span)) = found else { panic!("{file}: no struct {name}") };
+            assert_eq!(span as usize, layout.size, "{file}: {name}: WGSL size {span}, Rust size {}", layout.size);
+            let members: Vec<(&str, usize)> =
+                members.iter().map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize)).collect();
+            assert_eq!(members, layout.fields, "{file}: {name}: WGSL members (left) against the Rust type's (right)");
+        }
+    }
+}
+
+/// What the SPIR-V says about its types: the decorations the checks need.
+#[derive(Default)]
+struct Reflection {
+    /// Struct type id -> member names, and member offsets.
+    member_names: HashMap<u32, Vec<(u32, String)>>,
+    member_offsets: HashMap<u32, Vec<(u32, u32)>>,
+    /// Struct type ids, in order of declaration.
+    structs: Vec<u32>,
+    /// Runtime-array type id -> element type id; type id -> ArrayStride.
+    array_element: HashMap<u32, u32>,
+    array_stride: HashMap<u32, u32>,
+    /// Result id -> OpName; result id -> SpecId.
+    names: HashMap<u32, String>,
+    spec_ids: HashMap<u32, u32>,
+}
+
+fn string(words: &[u32]) -> String {
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).take_while(|b| *b != 0).collect();
+    String::from_utf8_lossy(&bytes).into_owned()
+}
+
+fn reflect(spirv: &[u8]) -> Reflection {
+    let words: Vec<u32> = spirv.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    assert_eq!(words[0], 0x0723_0203, "SPIR-V magic number");
+    let mut r = Reflection::default();
+    let mut i = 5;
+    while i < words.len() {
+        let (count, opcode) = ((words[i] >> 16) as usize, words[i] & 0xffff);
+        let op = &words[i + 1..i + count];
+        match opcode {
+            5 => drop(r.names.insert(op[0], string(&op[1..]))),
+            6 => r.member_names.entry(op[0]).or_default().push((op[1], string(&op[2..]))),
+            71 if op[1] == 1 => drop(r.spec_ids.insert(op[0], op[2])),
+            71 if op[1] == 6 => drop(r.array_stride.insert(op[0], op[2])),
+            72 if op[2] == 35 => r.member_offsets.entry(op[0]).or_default().push((op[1], op[3])),
+            29 => drop(r.array_element.insert(op[0], op[1])),
+            30 => r.structs.push(op[0]),
+            _ => {}
+        }
+        i += count.max(1);
+    }
+    r
+}
+
+/// The laid-out struct whose members are named `names`: `(member, offset)` and its array stride
+/// (its size) if it is the element of a runtime array. Only the buffer-layout copy of a struct
+/// carries Offset decorations (a copy for function-local values has none).
+fn spirv_struct(r: &Reflection, names: &[&str]) -> Option<(Vec<(String, u32)>, Option<u32>)> {
+    r.structs.iter().find_map(|id| {
+        let mut members = r.member_names.get(id).cloned().unwrap_or_default();
+        members.sort();
+        let mut offsets = r.member_offsets.get(id).cloned().unwrap_or_default();
+        offsets.sort();
+        let same = members.len() == names.len() && members.iter().zip(names).all(|((_, a), b)| a == b);
+        (same && offsets.len() == names.len()).then(|| {
+            let fields = members.into_iter().zip(offsets).map(|((_, n), (_, o))| (n, o)).collect();
+            let stride = r.array_element.iter().find(|(_, e)| *e == id).and_then(|(a, _)| r.array_stride.get(a));
+            (fields, stride.copied())
+        })
+    })
+}
+
+#[test]
+fn every_spirv_module_lays_the_shared_structs_out_as_the_host() {
+    for (file, spirv) in SPIRV_MODULES {
+        let r = reflect(spirv);
+        let mut found = 0;
+        for layout in cloth_gpu::layout::struct_layouts() {
+            let name = layout.shader_name;
+            let names: Vec<&str> = layout.fields.iter().map(|f| f.0).collect();
+            // A module that does not use a struct carries no trace of it.
+            let Some((members, stride)) = spirv_struct(&r, &names) else { continue };
+            found += 1;
+            // Array elements carry their size as the array's stride; a uniform block has none (its
+            // last member, a float or a vec4 in our blocks, ends where the Rust struct does).
+            match stride {
+                Some(stride) => assert_eq!(stride as usize, layout.size, "{file}: {name}: stride against size"),
+                None => {
+                    let last = layout.size - layout.fields.last().map_or(0, |f| f.1);
+                    assert!(last == 4 || last == 16, "{file}: {name}: the last member ends the struct");
+                }
+            }
+            let members: Vec<(&str, usize)> = members.iter().map(|(n, o)| (n.as_str(), *o as usize)).collect();
+            assert_eq!(members, layout.fields, "{file}: {name}: SPIR-V members (left) against the Rust type's (right)");
+        }
+        assert!(found >= 2, "{file}: the parameters and the spheres at least");
+    }
+}
+
+/// The plan of each integrator on a device that allows everything, tiled or not.
+fn plans() -> Vec<Plan> {
+    let limits = DeviceLimits {
+        max_workgroups_per_dimension: 65_535,
+        max_invocations: 1024,
+        workgroup_memory: 48 * 1024,
+        max_storage_binding: 1 << 30,
+        storage_buffers_per_stage: 16,
+        cpu: false,
+    };
+    let mut plans = Vec::new();
+    for integrator in Integrator::ALL {
+        for tiling in [Tiling::On, Tiling::Off] {
+            let scene = Scene { integrator, ..Scene::default() };
+            let tuning = GpuTuning { tiling, ..GpuTuning::default() };
+            plans.push(Plan::new(&scene, &tuning, &limits, "test").unwrap());
+        }
+    }
+    plans
+}
+
+#[test]
+fn every_constant_the_plan_sets_is_declared_by_its_module() {
+    let wgsl: HashMap<&str, naga::Module> = [("step", 0), ("tiled", 1), ("xpbd", 2)]
+        .into_iter()
+        .map(|(kind, k)| (kind, naga::front::wgsl::parse_str(&wgsl_modules()[k].1).unwrap()))
+        .collect();
+    let spirv: HashMap<&str, Reflection> = [("step", 0), ("tiled", 1), ("xpbd", 2)]
+        .into_iter()
+        .map(|(kind, k)| (kind, reflect(SPIRV_MODULES[k].1)))
+        .collect();
+    let mut checked = 0;
+    for plan in plans() {
+        for pipeline in &plan.pipelines {
+            let kind = match plan.kernels[pipeline.kernel].shader {
+                Shader::Step => "step",
+                Shader::Tiled(_) => "tiled",
+                Shader::Xpbd => "xpbd",
+            };
+            for (constant, _) in &pipeline.constants {
+                let name = constant.name();
+                if !constant.is_wgsl_module_constant() {
+                    let overrides = &wgsl[kind].overrides;
+                    let declared = overrides.iter().any(|(_, o)| o.name.as_deref() == Some(name));
+                    assert!(declared, "{kind} WGSL: no override {name} for {}", pipeline.label);
+                }
+                let r = &spirv[kind];
+                let by_id: HashMap<u32, &str> = r
+                    .spec_ids
+                    .iter()
+                    .map(|(target, id)| (*id, r.names.get(target).map_or("", String::as_str)))
+                    .collect();
+                // glslc names a constant that sizes the workgroup after the gl_WorkGroupSize it
+                // builds, not after itself.
+                let sizes_workgroup =
+                    matches!(constant, Constant::WorkgroupSize | Constant::TileWidth | Constant::TileHeight);
+                let ok = by_id.get(&constant.spec_id()).is_some_and(|n| *n == name || sizes_workgroup);
+                assert!(ok, "{kind} SPIR-V: constant_id {} is not {name}: {by_id:?}", constant.spec_id());
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 100, "{checked}");
+}
