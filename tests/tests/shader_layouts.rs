@@ -177,6 +177,7 @@ fn every_constant_the_plan_sets_is_declared_by_its_module() {
                 Shader::Step => "step",
                 Shader::Tiled(_) => "tiled",
                 Shader::Xpbd => "xpbd",
+                Shader::Copy => unreachable!("a simulation's plan has no copy kernel"),
             };
             for (constant, _) in &pipeline.constants {
                 let name = constant.name();

@@ -67,37 +67,34 @@ pub fn run(args: BenchArgs) -> Result<()> {
     } else {
         args.substeps.clone()
     };
-    // The ceiling: the device's copy bandwidth (measured through wgpu, on the adapter the GPU
-    // backends use), at the least a substep must move per vertex.
-    let bandwidth = if chosen.iter().any(|b| !b.name.starts_with("cpu")) {
-        match backends::copy_bandwidth(args.tuning.adapter.as_deref()) {
-            Ok(b) => {
-                println!(
-                    "device copy bandwidth: {:.3} TB/s ({:.3} by a vec4 copy kernel, {:.3} by the copy command; {} \
-                     copies of {} MiB, bytes read + written, on {})",
-                    b.bytes_per_s / 1e12,
-                    b.kernel_bytes_per_s / 1e12,
-                    b.copy_command_bytes_per_s / 1e12,
-                    b.copies,
-                    b.copy_bytes >> 20,
-                    b.adapter
-                );
-                println!(
-                    "ceiling at {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes per vertex-substep (read and write one position and \
-                     one velocity vec4): {:.2} G vertex-substeps/s (semi-implicit Euler's packed state moves \
-                     {PACKED_BYTES_PER_VERTEX_SUBSTEP}: {:.2} G vertex-substeps/s)\n",
-                    b.bytes_per_s / MIN_BYTES_PER_VERTEX_SUBSTEP / 1e9,
-                    b.bytes_per_s / PACKED_BYTES_PER_VERTEX_SUBSTEP / 1e9
-                );
-                Some(b)
-            }
-            Err(e) => {
-                println!("device copy bandwidth: not measured ({e})\n");
-                None
-            }
+    // The ceiling: the device's copy bandwidth, measured by the copy kernel of the first GPU
+    // backend listed, at the least a substep must move per vertex.
+    let tuning = args.tuning.tuning();
+    let measured_by = chosen.iter().find_map(|b| b.copy_bandwidth.map(|measure| (b.name, measure)));
+    let bandwidth = match measured_by.map(|(name, measure)| (name, measure(&tuning))) {
+        Some((name, Ok(b))) => {
+            println!(
+                "device copy bandwidth: {:.3} TB/s (a vec4 copy kernel through {name}; {} copies of {} MiB, bytes read \
+                 + written, on {})",
+                b.bytes_per_s / 1e12,
+                b.copies,
+                b.copy_bytes >> 20,
+                b.adapter
+            );
+            println!(
+                "ceiling at {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes per vertex-substep (read and write one position and \
+                 one velocity vec4): {:.2} G vertex-substeps/s (semi-implicit Euler's packed state moves \
+                 {PACKED_BYTES_PER_VERTEX_SUBSTEP}: {:.2} G vertex-substeps/s)\n",
+                b.bytes_per_s / MIN_BYTES_PER_VERTEX_SUBSTEP / 1e9,
+                b.bytes_per_s / PACKED_BYTES_PER_VERTEX_SUBSTEP / 1e9
+            );
+            Some(b)
         }
-    } else {
-        None
+        Some((_, Err(e))) => {
+            println!("device copy bandwidth: not measured ({e})\n");
+            None
+        }
+        None => None,
     };
     println!(
         "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10} {:>10} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
@@ -120,7 +117,6 @@ pub fn run(args: BenchArgs) -> Result<()> {
         ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let tuning = args.tuning.tuning();
     let mut rows: Vec<ThroughputRow> = Vec::new();
     let mut adapters: Vec<String> = Vec::new();
     'backends: for backend in &chosen {

@@ -21,11 +21,11 @@ pub struct TuningArgs {
     block_width: Option<u32>,
     /// Whether semi-implicit Euler fuses substeps in workgroup memory: auto (on GPUs, for grids
     /// of up to 256²), on (wherever the device fits the tile), off.
-    #[arg(long, default_value = "auto", value_parser = |s: &str| s.parse::<Tiling>())]
+    #[arg(long, default_value = "auto", value_parser = tiling)]
     tiling: Tiling,
     /// The fused kernel's tile, WIDTHxHEIGHTxSUBSTEPS (default: the largest of 32x16x2 and
     /// 16x16x2 the device fits).
-    #[arg(long, value_parser = |s: &str| s.parse::<TileConfig>())]
+    #[arg(long, value_parser = tile)]
     tile: Option<TileConfig>,
     /// Whether semi-implicit Euler's substeps inside a submission pass each other the packed
     /// 24-byte state (on) or two vec4s (off).
@@ -33,11 +33,38 @@ pub struct TuningArgs {
     packed_state: bool,
     /// The order the packed passes take the grid's blocks in: auto (alternating where a substep
     /// moves 25 to 100 MB), forward, alternating.
-    #[arg(long, default_value = "auto", value_parser = |s: &str| s.parse::<BlockOrder>())]
+    #[arg(long, default_value = "auto", value_parser = block_order)]
     block_order: BlockOrder,
     /// vulkano: print each pipeline's registers and workgroup memory as the driver reports them.
     #[arg(long)]
     pipeline_statistics: bool,
+}
+
+fn tiling(text: &str) -> Result<Tiling, String> {
+    match text {
+        "auto" => Ok(Tiling::Auto),
+        "on" => Ok(Tiling::On),
+        "off" => Ok(Tiling::Off),
+        _ => Err(format!("'{text}' is not a tiling: auto, on or off")),
+    }
+}
+
+fn block_order(text: &str) -> Result<BlockOrder, String> {
+    match text {
+        "auto" => Ok(BlockOrder::Auto),
+        "forward" => Ok(BlockOrder::Forward),
+        "alternating" => Ok(BlockOrder::Alternating),
+        _ => Err(format!("'{text}' is not a block order: auto, forward or alternating")),
+    }
+}
+
+/// `WIDTHxHEIGHTxSUBSTEPS`, e.g. `32x16x2`.
+fn tile(text: &str) -> Result<TileConfig, String> {
+    let parts: Vec<Option<u32>> = text.split(['x', 'X']).map(|p| p.trim().parse().ok()).collect();
+    match parts[..] {
+        [Some(width), Some(height), Some(substeps)] => Ok(TileConfig { width, height, substeps }),
+        _ => Err(format!("'{text}' is not a tile WIDTHxHEIGHTxSUBSTEPS (e.g. 32x16x2)")),
+    }
 }
 
 fn on_off(text: &str) -> Result<bool, String> {

@@ -9,6 +9,7 @@ pub mod effect_cost;
 pub mod throughput;
 
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
+pub use cloth_gpu::bandwidth::CopyBandwidth;
 use cloth_gpu::{GpuSimulator, GpuTuning};
 
 /// Creates a simulator for a scene; a GPU backend lays its work out as the tuning says and
@@ -25,6 +26,8 @@ pub struct Backend {
     pub create: Factory,
     /// Lists the adapters this backend can use here, or says why none.
     pub adapters: fn() -> Result<Vec<String>, String>,
+    /// Measures the device's copy bandwidth, the memory ceiling of a substep (GPU backends).
+    pub copy_bandwidth: Option<fn(&GpuTuning) -> Result<CopyBandwidth, SimError>>,
 }
 
 fn cpu<S: Simulator + 'static>(scene: &Scene, _tuning: &GpuTuning) -> Result<Box<dyn Simulator>, SimError> {
@@ -47,24 +50,28 @@ pub fn all() -> Vec<Backend> {
             description: "CPU reference stepper in f32 (the oracle GPU results are compared with)",
             create: cpu::<CpuSimulator>,
             adapters: cpu_adapters,
+            copy_bandwidth: None,
         },
         Backend {
             name: "cpu-f64",
             description: "CPU reference stepper in f64 (high-precision oracle)",
             create: cpu::<CpuSimulatorF64>,
             adapters: cpu_adapters,
+            copy_bandwidth: None,
         },
         Backend {
             name: cloth_wgpu::BACKEND_NAME,
             description: "WGSL compute shaders through wgpu (Vulkan, Metal or DX12; lavapipe included)",
             create: gpu::<cloth_wgpu::WgpuBackend>,
             adapters: cloth_wgpu::list_adapters,
+            copy_bandwidth: Some(cloth_gpu::bandwidth::copy_bandwidth::<cloth_wgpu::WgpuBackend>),
         },
         Backend {
             name: cloth_vulkano::BACKEND_NAME,
             description: "GLSL compute shaders compiled to SPIR-V, through vulkano (Vulkan; lavapipe included)",
             create: gpu::<cloth_vulkano::VulkanoBackend>,
             adapters: cloth_vulkano::list_devices,
+            copy_bandwidth: Some(cloth_gpu::bandwidth::copy_bandwidth::<cloth_vulkano::VulkanoBackend>),
         },
     ]
 }
@@ -80,5 +87,3 @@ pub fn find(name: &str) -> Result<Backend, String> {
         .find(|b| b.name == name)
         .ok_or_else(|| format!("unknown backend '{name}': this build has {}", names.join(", ")))
 }
-
-pub use cloth_wgpu::{CopyBandwidth, copy_bandwidth};

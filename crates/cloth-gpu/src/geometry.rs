@@ -42,6 +42,44 @@ pub struct DeviceLimits {
     pub cpu: bool,
 }
 
+/// The kinds of device, best first: without a name to look for, a backend opens the best.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum DeviceKind {
+    /// A discrete GPU.
+    DiscreteGpu,
+    /// A GPU integrated with the CPU.
+    IntegratedGpu,
+    /// A virtual GPU.
+    VirtualGpu,
+    /// Anything else.
+    Other,
+    /// A CPU implementation (lavapipe).
+    Cpu,
+}
+
+/// Of `devices` (each with its name and kind), the first whose name contains `wanted`
+/// (case-insensitive), else the best.
+///
+/// # Errors
+/// `none` when there is no device; the names found when none matches.
+pub fn choose_device<T>(
+    mut devices: Vec<(T, String, DeviceKind)>,
+    wanted: Option<&str>,
+    none: &str,
+) -> Result<T, String> {
+    devices.sort_by_key(|d| d.2);
+    let names: Vec<String> = devices.iter().map(|d| d.1.clone()).collect();
+    let found = match wanted {
+        None => devices.into_iter().next(),
+        Some(w) => devices.into_iter().find(|d| d.1.to_lowercase().contains(&w.to_lowercase())),
+    };
+    match (found, wanted) {
+        (Some((device, _, _)), _) => Ok(device),
+        (None, Some(w)) if !names.is_empty() => Err(format!("no device named like '{w}'; found: {}", names.join(", "))),
+        (None, _) => Err(none.to_string()),
+    }
+}
+
 /// Bytes a vertex takes in semi-implicit Euler's packed state.
 pub const PACKED_VERTEX_BYTES: u64 = 24;
 
@@ -182,24 +220,6 @@ impl TileConfig {
         [nx.div_ceil(w.max(1)), ny.div_ceil(h.max(1))]
     }
 
-    /// Bytes of DRAM traffic per vertex-substep if every tile were read and every output block
-    /// written once (32 bytes of state a vertex each way):
-    /// `32 (width·height + out_w·out_h) / (out_w·out_h·substeps)`.
-    pub fn bytes_per_vertex_substep(&self) -> f64 {
-        let (w, h) = self.output_block();
-        let out = (w * h) as f64;
-        32.0 * (self.cells() as f64 + out) / (out * self.substeps as f64)
-    }
-
-    /// Vertex-substeps computed per vertex-substep delivered (the halo's recomputation: substep
-    /// `s` computes the cells at least `2s` from the tile's edge).
-    pub fn recomputation(&self) -> f64 {
-        let (w, h) = self.output_block();
-        let computed: u32 =
-            (1..=self.substeps).map(|s| self.width.saturating_sub(4 * s) * self.height.saturating_sub(4 * s)).sum();
-        computed as f64 / ((w * h) as f64 * self.substeps as f64)
-    }
-
     /// Checks the tile's shape.
     ///
     /// # Errors
@@ -263,18 +283,5 @@ impl TileConfig {
 impl std::fmt::Display for TileConfig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{}x{}x{}", self.width, self.height, self.substeps)
-    }
-}
-
-impl std::str::FromStr for TileConfig {
-    type Err = String;
-
-    /// `WIDTHxHEIGHTxSUBSTEPS`, e.g. `32x16x2`.
-    fn from_str(s: &str) -> Result<Self, String> {
-        let parts: Vec<Option<u32>> = s.split(['x', 'X']).map(|p| p.trim().parse().ok()).collect();
-        match parts[..] {
-            [Some(width), Some(height), Some(substeps)] => Ok(Self { width, height, substeps }),
-            _ => Err(format!("'{s}' is not a tile WIDTHxHEIGHTxSUBSTEPS (e.g. 32x16x2)")),
-        }
     }
 }

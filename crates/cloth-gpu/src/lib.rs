@@ -9,13 +9,15 @@
 //! * [`memory`]: the device memory a scene needs, checked before anything is allocated;
 //! * [`plan`]: every buffer, kernel, pipeline and bind group of a simulation;
 //! * [`schedule`]: the order of a frame's dispatches;
-//! * [`simulator`]: [`GpuSimulator`], the `Simulator` of every backend, over [`GpuBackend`].
+//! * [`simulator`]: [`GpuSimulator`], the `Simulator` of every backend, over [`GpuBackend`];
+//! * [`bandwidth`]: the device's copy bandwidth, the ceiling of a memory-bound substep.
 //!
 //! A backend (`cloth-wgpu`, `cloth-vulkano`) implements [`GpuBackend`]: it turns the plan's
 //! descriptions into its API's objects and records the dispatches of [`Schedule::frame`].
 
 #![warn(missing_docs)]
 
+pub mod bandwidth;
 pub mod geometry;
 pub mod layout;
 pub mod memory;

@@ -71,6 +71,8 @@ pub enum Shader {
     Tiled(TileConfig),
     /// `xpbd`: XPBD's passes.
     Xpbd,
+    /// `copy`: the copy kernel that measures the memory bandwidth ([`crate::bandwidth`]).
+    Copy,
 }
 
 /// A kernel: a shader module and the layout of its bindings, shared by its pipelines.
@@ -113,45 +115,41 @@ pub enum Constant {
 }
 
 impl Constant {
+    /// The constant's name in the shaders and its GLSL `constant_id` (the effects `0..` in
+    /// `Effect::ALL` order, the others from 100).
+    fn declared(self) -> (&'static str, u32) {
+        match self {
+            Constant::Effect(e) => {
+                (e.shader_constant_name(), Effect::ALL.iter().position(|x| *x == e).unwrap_or(0) as u32)
+            }
+            Constant::WorkgroupSize => ("WORKGROUP_SIZE", 100),
+            Constant::Stage => ("STAGE", 101),
+            Constant::XpbdPass => ("XPBD_PASS", 101),
+            Constant::TileWidth => ("TILE_WIDTH", 102),
+            Constant::TileHeight => ("TILE_HEIGHT", 103),
+            Constant::TileCells => ("TILE_CELLS", 104),
+            Constant::FusedSubsteps => ("FUSED_SUBSTEPS", 106),
+            Constant::BlockWidth => ("BLOCK_WIDTH", 107),
+            Constant::PackedIn => ("PACKED_IN", 108),
+            Constant::PackedOut => ("PACKED_OUT", 109),
+            Constant::ReversedOrder => ("REVERSED_ORDER", 110),
+        }
+    }
+
     /// The constant's name in the shaders.
     pub fn name(self) -> &'static str {
-        match self {
-            Constant::Effect(e) => e.shader_constant_name(),
-            Constant::WorkgroupSize => "WORKGROUP_SIZE",
-            Constant::Stage => "STAGE",
-            Constant::XpbdPass => "XPBD_PASS",
-            Constant::BlockWidth => "BLOCK_WIDTH",
-            Constant::PackedIn => "PACKED_IN",
-            Constant::PackedOut => "PACKED_OUT",
-            Constant::ReversedOrder => "REVERSED_ORDER",
-            Constant::TileWidth => "TILE_WIDTH",
-            Constant::TileHeight => "TILE_HEIGHT",
-            Constant::TileCells => "TILE_CELLS",
-            Constant::FusedSubsteps => "FUSED_SUBSTEPS",
-        }
+        self.declared().0
+    }
+
+    /// Its GLSL `constant_id`.
+    pub fn spec_id(self) -> u32 {
+        self.declared().1
     }
 
     /// Whether WGSL declares it as a module constant rather than an `override`: the tile's
     /// sizes, which size workgroup arrays (the backend writes them into the module's source).
     pub fn is_wgsl_module_constant(self) -> bool {
         matches!(self, Constant::TileWidth | Constant::TileHeight | Constant::TileCells | Constant::FusedSubsteps)
-    }
-
-    /// Its GLSL `constant_id`: the effects `0..` in `Effect::ALL` order, the others from 100.
-    pub fn spec_id(self) -> u32 {
-        match self {
-            Constant::Effect(e) => Effect::ALL.iter().position(|x| *x == e).unwrap_or(0) as u32,
-            Constant::WorkgroupSize => 100,
-            Constant::Stage | Constant::XpbdPass => 101,
-            Constant::TileWidth => 102,
-            Constant::TileHeight => 103,
-            Constant::TileCells => 104,
-            Constant::FusedSubsteps => 106,
-            Constant::BlockWidth => 107,
-            Constant::PackedIn => 108,
-            Constant::PackedOut => 109,
-            Constant::ReversedOrder => 110,
-        }
     }
 }
 
@@ -179,7 +177,7 @@ pub struct BindGroupDesc {
 }
 
 /// The buffers every plan has, which the simulator reads, writes and draws from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StateBuffers {
     /// [`GpuSimParams`].
     pub params: BufferId,
@@ -194,7 +192,7 @@ pub struct StateBuffers {
 }
 
 /// Everything a backend creates for a simulation, and the schedule of its frames.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Plan {
     /// Buffers.
     pub buffers: Vec<BufferDesc>,
@@ -210,43 +208,23 @@ pub struct Plan {
     pub state: StateBuffers,
 }
 
-/// The bindings 0-6 of both force kernels: the parameters, the spheres, the state read and
-/// written, the deepest penetration.
-const STATE_BINDINGS: [Binding; 7] = [
-    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
-    Binding::Storage { read_only: true },  // spheres
-    Binding::Storage { read_only: true },  // positions in
-    Binding::Storage { read_only: true },  // velocities in
-    Binding::Storage { read_only: false }, // positions out
-    Binding::Storage { read_only: false }, // velocities out
-    Binding::Storage { read_only: false }, // deepest penetration
-];
+const READ: Binding = Binding::Storage { read_only: true };
+const WRITE: Binding = Binding::Storage { read_only: false };
+const PARAMS: Binding = Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false };
+const COLOR_RANGE: Binding = Binding::Uniform { size: size_of::<GpuColorRange>() as u64, dynamic: true };
 
-/// `cloth_step`'s bindings 7-12: RK4's scratch, the packed states in and out, the pin bits.
-const STEP_EXTRA_BINDINGS: [Binding; 6] = [
-    Binding::Storage { read_only: false },
-    Binding::Storage { read_only: true },
-    Binding::Storage { read_only: true },
-    Binding::Storage { read_only: false },
-    Binding::Storage { read_only: false },
-    Binding::Storage { read_only: true },
-];
+/// The bindings 0-6 of both force kernels: the parameters, the spheres, positions and velocities
+/// in, positions and velocities out, the deepest penetration.
+const STATE_BINDINGS: [Binding; 7] = [PARAMS, READ, READ, READ, WRITE, WRITE, WRITE];
 
-/// `xpbd`'s bindings: parameters, spheres, constraints, the state in and out, the deepest
-/// penetration, the multipliers, the normal corrections and the colour range.
-const XPBD_BINDINGS: [Binding; 11] = [
-    Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false },
-    Binding::Storage { read_only: true },
-    Binding::Storage { read_only: true },
-    Binding::Storage { read_only: true },
-    Binding::Storage { read_only: true },
-    Binding::Storage { read_only: false },
-    Binding::Storage { read_only: false },
-    Binding::Storage { read_only: false },
-    Binding::Storage { read_only: false },
-    Binding::Storage { read_only: false },
-    Binding::Uniform { size: size_of::<GpuColorRange>() as u64, dynamic: true },
-];
+/// `cloth_step`'s bindings 7-12: RK4's scratch, the packed `(x, v.x)` and `(v.y, v.z)` in, the
+/// same out, the pin bits.
+const STEP_EXTRA_BINDINGS: [Binding; 6] = [WRITE, READ, READ, WRITE, WRITE, READ];
+
+/// `xpbd`'s bindings: parameters, spheres, constraints, positions and velocities in, positions
+/// and velocities out, the deepest penetration, the multipliers, the normal corrections, and the
+/// colour range (a block of the colour-range buffer, chosen by a dynamic offset).
+const XPBD_BINDINGS: [Binding; 11] = [PARAMS, READ, READ, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, COLOR_RANGE];
 
 const NAME: [&str; 2] = ["A", "B"];
 
@@ -323,15 +301,7 @@ impl Plan {
             .collect();
         let velocities: Vec<[f32; 4]> =
             grid.pinned.iter().map(|&pinned| if pinned { [0.0; 4] } else { [v0[0], v0[1], v0[2], 0.0] }).collect();
-        let empty = Plan {
-            buffers: Vec::new(),
-            kernels: Vec::new(),
-            pipelines: Vec::new(),
-            bind_groups: Vec::new(),
-            schedule: Schedule { substep: Vec::new(), tiled: None, packed: None },
-            state: StateBuffers { params: 0, spheres: 0, positions: [0; 2], velocities: [0; 2], max_penetration: 0 },
-        };
-        let mut b = Builder { plan: empty, scene, tuning };
+        let mut b = Builder { plan: Plan::default(), scene, tuning };
         let (storage, drawable) = (BufferUsage::Storage, BufferUsage::StorageDrawable);
         let state = StateBuffers {
             params: b.filled("params", BufferUsage::Uniform, bytemuck::bytes_of(&GpuSimParams::of(scene))),
@@ -395,7 +365,7 @@ fn force_based(
     };
     let pass = |pipeline, groups| Pass { pipeline, groups, workgroups: blocks.workgroups, dynamic_offset: None };
     let step = |stage: u32| [(Constant::Stage, stage), (Constant::BlockWidth, w)];
-    let mut schedule = Schedule { substep: Vec::new(), tiled: None, packed: None };
+    let mut schedule = Schedule::default();
     match scene.integrator {
         Integrator::SemiImplicitEuler => {
             let groups = [0, 1].map(|k| {

@@ -83,7 +83,7 @@ pub struct TiledPass {
 }
 
 /// The dispatches of a simulation's frames.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Schedule {
     /// The dispatches of one substep, in order.
     pub substep: Vec<Pass>,

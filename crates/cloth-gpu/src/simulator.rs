@@ -10,8 +10,13 @@ use crate::plan::{BindGroupDesc, BufferDesc, KernelDesc, PipelineDesc, Plan, Sta
 use crate::schedule::{Dispatch, Schedule};
 use crate::tuning::GpuTuning;
 
+/// Timestamp pairs a timer holds before they must be read: one per advance.
+pub const TIMER_PAIRS: u32 = 256;
+
 /// A frame to record: its dispatches, in order, and the objects they name.
 pub struct Frame<'a, B: GpuBackend> {
+    /// The timer's pair to write before and after the dispatches, while timing is on.
+    pub timestamps: Option<u32>,
     /// The dispatches ([`Schedule::frame`]).
     pub dispatches: &'a [Dispatch],
     /// The pipelines, by [`crate::plan::PipelineId`].
@@ -21,7 +26,9 @@ pub struct Frame<'a, B: GpuBackend> {
 }
 
 /// What a GPU API provides the simulator: objects made from the plan's descriptions, one
-/// submission a frame, and copies in and out.
+/// submission a frame, and copies in and out. Every fallible call returns
+/// [`SimError::Device`] when the device fails (and `open` [`SimError::Unavailable`] when there
+/// is no such device).
 pub trait GpuBackend: Sized {
     /// A device buffer.
     type Buffer: Clone;
@@ -35,9 +42,6 @@ pub trait GpuBackend: Sized {
     const NAME: &'static str;
 
     /// Opens a device on the adapter `tuning.adapter` names (the best one without).
-    ///
-    /// # Errors
-    /// [`SimError::Unavailable`] when there is none.
     fn open(tuning: &GpuTuning) -> Result<Self, SimError>;
     /// The device, in words.
     fn adapter_name(&self) -> String;
@@ -45,34 +49,14 @@ pub trait GpuBackend: Sized {
     fn limits(&self) -> DeviceLimits;
     /// Runs `create`, which creates a simulation's objects, then uploads what they hold and
     /// reports any creation call that failed without saying so.
-    ///
-    /// # Errors
-    /// What `create` returns, or [`SimError::Device`].
     fn setup<T>(&mut self, create: impl FnOnce(&mut Self) -> Result<T, SimError>) -> Result<T, SimError>;
     /// Creates a buffer with the description's contents.
-    ///
-    /// # Errors
-    /// [`SimError::Device`] when the device cannot.
     fn create_buffer(&mut self, desc: &BufferDesc) -> Result<Self::Buffer, SimError>;
     /// Creates a kernel.
-    ///
-    /// # Errors
-    /// [`SimError::Device`] when the module does not load.
     fn create_kernel(&mut self, desc: &KernelDesc) -> Result<Self::Kernel, SimError>;
     /// Creates a pipeline of a kernel.
-    ///
-    /// # Errors
-    /// [`SimError::Device`] when the device cannot.
-    fn create_pipeline(
-        &mut self,
-        kernel: &Self::Kernel,
-        desc: &PipelineDesc,
-        tuning: &GpuTuning,
-    ) -> Result<Self::Pipeline, SimError>;
+    fn create_pipeline(&mut self, kernel: &Self::Kernel, desc: &PipelineDesc) -> Result<Self::Pipeline, SimError>;
     /// Creates a bind group of a kernel with `buffers`, one a binding.
-    ///
-    /// # Errors
-    /// [`SimError::Device`] when the device cannot.
     fn create_bind_group(
         &mut self,
         kernel: &Self::Kernel,
@@ -81,35 +65,23 @@ pub trait GpuBackend: Sized {
     ) -> Result<Self::BindGroup, SimError>;
     /// Records the frame into one command buffer (with a memory barrier between dispatches, and
     /// the timer's timestamps when timing is on) and submits it without waiting.
-    ///
-    /// # Errors
-    /// [`SimError::Device`].
     fn submit(&mut self, frame: Frame<'_, Self>) -> Result<(), SimError>;
     /// Writes `bytes` at the start of `buffer`, before the next submission runs.
-    ///
-    /// # Errors
-    /// [`SimError::Device`].
     fn write(&mut self, buffer: &Self::Buffer, bytes: &[u8]) -> Result<(), SimError>;
     /// Reads the first `bytes` of each buffer, after everything submitted, with one host wait.
-    ///
-    /// # Errors
-    /// [`SimError::Device`].
     fn read(&mut self, sources: &[(&Self::Buffer, u64)]) -> Result<Vec<Vec<u8>>, SimError>;
-    /// Turns the timestamps of each submission on or off; whether they are on.
-    fn set_timing(&mut self, on: bool) -> bool;
-    /// Whether the timer holds as many submissions as it can: it must be read before the next.
-    fn timer_full(&self) -> bool;
-    /// GPU seconds of the submissions timed since the last call (one host wait).
-    ///
-    /// # Errors
-    /// [`SimError::Device`].
-    fn take_timer_seconds(&mut self) -> Result<f64, SimError>;
+    /// Waits for everything submitted: the objects a submission uses may be dropped after.
+    fn wait(&mut self) -> Result<(), SimError>;
+    /// Creates a timer of [`TIMER_PAIRS`] timestamp pairs, where the device has timestamps.
+    fn create_timer(&mut self) -> bool;
+    /// The seconds the timer's pairs `0..pairs` span together, after everything submitted (one
+    /// host wait).
+    fn read_timer(&mut self, pairs: u32) -> Result<f64, SimError>;
 }
 
 /// A cloth simulated on a GPU through backend `B`.
 pub struct GpuSimulator<B: GpuBackend> {
     scene: Scene,
-    tuning: GpuTuning,
     buffers: Vec<B::Buffer>,
     /// Bytes of each buffer.
     sizes: Vec<u64>,
@@ -123,7 +95,8 @@ pub struct GpuSimulator<B: GpuBackend> {
     current: usize,
     /// `w` of each vertex's position: 1 free, 0 pinned.
     free: Vec<f32>,
-    timing: bool,
+    /// Pairs of the timer written since it was last read, while timing is on.
+    timed: Option<u32>,
     /// GPU seconds read from a full timer and not yet taken.
     pending_seconds: f64,
     time_s: f64,
@@ -131,6 +104,14 @@ pub struct GpuSimulator<B: GpuBackend> {
     last_advance: AdvanceCounts,
     /// Last, so that it is dropped after every object made on it.
     backend: B,
+}
+
+impl<B: GpuBackend> Drop for GpuSimulator<B> {
+    /// Waits for the device first: the submitted frames use the pipelines, bind groups and
+    /// buffers dropped next.
+    fn drop(&mut self) {
+        let _ = self.backend.wait();
+    }
 }
 
 impl<B: GpuBackend> GpuSimulator<B> {
@@ -159,7 +140,7 @@ impl<B: GpuBackend> GpuSimulator<B> {
             let buffers = plan.buffers.iter().map(|d| backend.create_buffer(d)).collect::<Result<Vec<_>, _>>()?;
             let kernels = plan.kernels.iter().map(|d| backend.create_kernel(d)).collect::<Result<Vec<_>, _>>()?;
             let pipelines = (plan.pipelines.iter())
-                .map(|d| backend.create_pipeline(&kernels[d.kernel], d, tuning))
+                .map(|d| backend.create_pipeline(&kernels[d.kernel], d))
                 .collect::<Result<Vec<_>, _>>()?;
             let bind_groups = (plan.bind_groups.iter())
                 .map(|d| {
@@ -172,7 +153,6 @@ impl<B: GpuBackend> GpuSimulator<B> {
         let positions = plan.buffers[plan.state.positions[0]].contents.as_deref().unwrap_or_default();
         Ok(Self {
             scene: scene.clone(),
-            tuning: tuning.clone(),
             sizes: plan.buffers.iter().map(|b| b.size).collect(),
             free: bytemuck::cast_slice::<u8, [f32; 4]>(positions).iter().map(|p| p[3]).collect(),
             buffers,
@@ -182,7 +162,7 @@ impl<B: GpuBackend> GpuSimulator<B> {
             state: plan.state,
             dispatches: Vec::new(),
             current: 0,
-            timing: false,
+            timed: None,
             pending_seconds: 0.0,
             time_s: 0.0,
             substeps_run: 0,
@@ -206,16 +186,6 @@ impl<B: GpuBackend> GpuSimulator<B> {
     /// The backend, with its device.
     pub fn backend(&self) -> &B {
         &self.backend
-    }
-
-    /// The tuning the simulator was created with.
-    pub fn tuning(&self) -> &GpuTuning {
-        &self.tuning
-    }
-
-    /// The schedule of its frames.
-    pub fn schedule(&self) -> &Schedule {
-        &self.schedule
     }
 
     fn read_buffers(&mut self, ids: &[usize]) -> Result<Vec<Vec<u8>>, SimError> {
@@ -255,16 +225,18 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
         if substeps == 0 {
             return Ok(());
         }
-        if self.timing && self.backend.timer_full() {
+        if self.timed == Some(TIMER_PAIRS) {
             // Only after as many advances as the timer holds without `take_gpu_seconds`: keep
             // the measurements.
-            self.pending_seconds += self.backend.take_timer_seconds()?;
+            self.pending_seconds += self.backend.read_timer(TIMER_PAIRS)?;
+            self.timed = Some(0);
             self.last_advance.host_waits = 1;
         }
         self.dispatches.clear();
         self.current = self.schedule.frame(substeps, self.current, &mut self.dispatches);
-        let frame = Frame { dispatches: &self.dispatches, pipelines: &self.pipelines, bind_groups: &self.bind_groups };
-        self.backend.submit(frame)?;
+        let (dispatches, pipelines, bind_groups) = (&self.dispatches, &self.pipelines, &self.bind_groups);
+        self.backend.submit(Frame { timestamps: self.timed, dispatches, pipelines, bind_groups })?;
+        self.timed = self.timed.map(|pairs| pairs + 1);
         self.last_advance.submissions = 1;
         // The clock advances substep by substep, as the kernels' `velocity.w` does.
         let dt = self.scene.substep_dt();
@@ -320,15 +292,18 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
     }
 
     fn set_gpu_timing(&mut self, on: bool) -> bool {
-        self.timing = self.backend.set_timing(on);
-        self.timing
+        if !on {
+            self.timed = None;
+        } else if self.timed.is_none() && self.backend.create_timer() {
+            self.timed = Some(0);
+        }
+        self.timed.is_some()
     }
 
     fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {
-        if !self.timing {
-            return Ok(None);
-        }
-        let seconds = self.backend.take_timer_seconds()? + std::mem::take(&mut self.pending_seconds);
-        Ok(Some(seconds))
+        let Some(pairs) = self.timed else { return Ok(None) };
+        let seconds = if pairs > 0 { self.backend.read_timer(pairs)? } else { 0.0 };
+        self.timed = Some(0);
+        Ok(Some(seconds + std::mem::take(&mut self.pending_seconds)))
     }
 }

@@ -119,29 +119,3 @@ impl GpuTuning {
         Ok(())
     }
 }
-
-impl std::str::FromStr for Tiling {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(Self::Auto),
-            "on" => Ok(Self::On),
-            "off" => Ok(Self::Off),
-            _ => Err(format!("'{s}' is not a tiling: auto, on or off")),
-        }
-    }
-}
-
-impl std::str::FromStr for BlockOrder {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(Self::Auto),
-            "forward" => Ok(Self::Forward),
-            "alternating" => Ok(Self::Alternating),
-            _ => Err(format!("'{s}' is not a block order: auto, forward or alternating")),
-        }
-    }
-}

@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use cloth_core::SimError;
 use cloth_gpu::plan::{BindGroupDesc, Binding, BufferDesc, BufferUsage, Constant, KernelDesc, PipelineDesc, Shader};
+use cloth_gpu::simulator::TIMER_PAIRS;
 use cloth_gpu::{DeviceLimits, Frame, GpuBackend, GpuTuning};
 use vulkano::buffer::{Buffer, BufferCreateInfo, Subbuffer};
 use vulkano::command_buffer::allocator::StandardCommandBufferAllocator;
@@ -19,14 +20,14 @@ use vulkano::memory::allocator::{AllocationCreateInfo, MemoryTypeFilter, Standar
 use vulkano::pipeline::compute::ComputePipelineCreateInfo;
 use vulkano::pipeline::layout::PipelineDescriptorSetLayoutCreateInfo;
 use vulkano::pipeline::{ComputePipeline, Pipeline, PipelineBindPoint, PipelineLayout, PipelineShaderStageCreateInfo};
+use vulkano::query::{QueryPool, QueryPoolCreateInfo, QueryResultFlags, QueryType};
 use vulkano::shader::{ShaderModule, ShaderModuleCreateInfo, SpecializationConstant};
-use vulkano::sync::GpuFuture;
 use vulkano::sync::future::FenceSignalFuture;
+use vulkano::sync::{GpuFuture, PipelineStage};
 
 use crate::context::VulkanContext;
 use crate::raw::FrameRecorder;
-use crate::timer::GpuTimer;
-use crate::{BACKEND_NAME, STEP_SPIRV, TILED_STEP_SPIRV, XPBD_SPIRV};
+use crate::{BACKEND_NAME, COPY_SPIRV, STEP_SPIRV, TILED_STEP_SPIRV, XPBD_SPIRV};
 
 /// The cloth simulated by GLSL compute shaders (SPIR-V) through vulkano.
 pub type VulkanoSimulator = cloth_gpu::GpuSimulator<VulkanoBackend>;
@@ -42,8 +43,9 @@ pub struct VulkanoBackend {
     setup: Option<AutoCommandBufferBuilder<PrimaryAutoCommandBuffer>>,
     /// The last submission, if not yet waited for.
     in_flight: Option<FenceSignalFuture<Box<dyn GpuFuture>>>,
-    /// GPU time of each submission, while timing is on and the queue can.
-    timer: Option<GpuTimer>,
+    /// The timestamp pairs of the submissions and the mask of a timestamp's valid bits, once
+    /// timing was asked for and the queue can.
+    timer: Option<(Arc<QueryPool>, u64)>,
     /// Whether to print each pipeline's statistics as it is built.
     statistics: bool,
     context: VulkanContext,
@@ -154,19 +156,11 @@ impl VulkanoBackend {
         self.in_flight = Some(future);
         self.context.check_validation()
     }
-
-    /// Waits for every submission so far.
-    fn wait(&mut self) -> Result<(), SimError> {
-        if let Some(f) = self.in_flight.take() {
-            f.wait(None).map_err(|e| device_error(format!("waiting for the device: {e}")))?;
-        }
-        self.context.check_validation()
-    }
 }
 
 impl Drop for VulkanoBackend {
-    /// Waits for the last submission: the frames use the pipelines, descriptor sets and buffers
-    /// without vulkano tracking them (`raw.rs`), and they are dropped with the simulator.
+    /// Waits for the last submission: the frames use buffers and pipelines without vulkano
+    /// tracking them (`raw.rs`).
     fn drop(&mut self) {
         if let Some(f) = self.in_flight.take() {
             let _ = f.wait(None);
@@ -243,6 +237,7 @@ impl GpuBackend for VulkanoBackend {
             Shader::Step => STEP_SPIRV,
             Shader::Tiled(_) => TILED_STEP_SPIRV,
             Shader::Xpbd => XPBD_SPIRV,
+            Shader::Copy => COPY_SPIRV,
         };
         let words = vulkano::shader::spirv::bytes_to_words(spirv).map_err(device_error)?;
         // SAFETY: the SPIR-V comes from glslc, which emits valid modules for Vulkan 1.1.
@@ -269,7 +264,6 @@ impl GpuBackend for VulkanoBackend {
         &mut self,
         kernel: &VulkanoKernel,
         desc: &PipelineDesc,
-        _tuning: &GpuTuning,
     ) -> Result<Arc<ComputePipeline>, SimError> {
         let constants: Vec<(u32, SpecializationConstant)> = (desc.constants.iter())
             .map(|&(c, value)| {
@@ -320,8 +314,14 @@ impl GpuBackend for VulkanoBackend {
     fn submit(&mut self, frame: Frame<'_, Self>) -> Result<(), SimError> {
         let mut recorder = FrameRecorder::begin(self.commands.clone(), self.context.queue.queue_family_index())
             .map_err(device_error)?;
-        if let Some(timer) = &self.timer {
-            timer.begin(&mut recorder.recording).map_err(device_error)?;
+        let timer = self.timer.as_ref().zip(frame.timestamps).map(|((pool, _), pair)| (pool.clone(), 2 * pair));
+        if let Some((pool, first)) = &timer {
+            // SAFETY: the pair is reset just before, in the same command buffer, and read only
+            // after a wait for the device; the pool lives as long as the backend.
+            unsafe {
+                recorder.recording.reset_query_pool(pool, *first..first + 2).map_err(device_error)?;
+                recorder.recording.write_timestamp(pool, *first, PipelineStage::TopOfPipe).map_err(device_error)?;
+            }
         }
         let mut bound = None;
         for d in frame.dispatches {
@@ -350,8 +350,10 @@ impl GpuBackend for VulkanoBackend {
             }
             recorder.between_dispatches().map_err(device_error)?;
         }
-        if let Some(timer) = &mut self.timer {
-            timer.end(&mut recorder.recording).map_err(device_error)?;
+        if let Some((pool, first)) = &timer {
+            // SAFETY: as above.
+            unsafe { recorder.recording.write_timestamp(pool, first + 1, PipelineStage::BottomOfPipe) }
+                .map_err(device_error)?;
         }
         let cb = recorder.end(self.no_resources.clone()).map_err(device_error)?;
         self.submit_after(cb)
@@ -389,24 +391,36 @@ impl GpuBackend for VulkanoBackend {
             .collect())
     }
 
-    fn set_timing(&mut self, on: bool) -> bool {
-        if !on {
-            self.timer = None;
-        } else if self.timer.is_none() {
-            self.timer = GpuTimer::new(&self.context.queue);
+    fn wait(&mut self) -> Result<(), SimError> {
+        if let Some(f) = self.in_flight.take() {
+            f.wait(None).map_err(|e| device_error(format!("waiting for the device: {e}")))?;
+        }
+        self.context.check_validation()
+    }
+
+    fn create_timer(&mut self) -> bool {
+        if self.timer.is_none() {
+            let (device, queue) = (&self.context.device, &self.context.queue);
+            let family = &device.physical_device().queue_family_properties()[queue.queue_family_index() as usize];
+            let info = QueryPoolCreateInfo {
+                query_count: 2 * TIMER_PAIRS,
+                ..QueryPoolCreateInfo::query_type(QueryType::Timestamp)
+            };
+            if let (Some(bits), Ok(pool)) = (family.timestamp_valid_bits, QueryPool::new(device.clone(), info)) {
+                self.timer = Some((pool, if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 }));
+            }
         }
         self.timer.is_some()
     }
 
-    fn timer_full(&self) -> bool {
-        self.timer.as_ref().is_some_and(GpuTimer::is_full)
-    }
-
-    fn take_timer_seconds(&mut self) -> Result<f64, SimError> {
-        if self.timer.is_none() {
-            return Ok(0.0);
-        }
+    fn read_timer(&mut self, pairs: u32) -> Result<f64, SimError> {
+        let Some((pool, mask)) = self.timer.clone() else { return Ok(0.0) };
         self.wait()?;
-        self.timer.as_mut().map_or(Ok(0.0), |t| t.take().map_err(device_error))
+        let mut stamps = vec![0u64; 2 * pairs as usize];
+        (pool.get_results(0..2 * pairs, &mut stamps, QueryResultFlags::WAIT))
+            .map_err(|e| device_error(format!("reading the timestamps: {e}")))?;
+        let ticks: u64 = stamps.chunks_exact(2).map(|p| (p[1].wrapping_sub(p[0])) & mask).sum();
+        let period_ns = self.context.device.physical_device().properties().timestamp_period as f64;
+        Ok(ticks as f64 * period_ns * 1e-9)
     }
 }

@@ -11,6 +11,8 @@ use vulkano::instance::debug::{
 };
 use vulkano::instance::{Instance, InstanceCreateFlags, InstanceCreateInfo, InstanceExtensions};
 
+use cloth_gpu::geometry::{DeviceKind, choose_device};
+
 use crate::BACKEND_NAME;
 
 const VALIDATION_LAYER: &str = "VK_LAYER_KHRONOS_validation";
@@ -40,14 +42,13 @@ fn describe(p: &PhysicalDevice) -> String {
     format!("{} ({:?}, Vulkan {}, {})", props.device_name, props.device_type, p.api_version(), driver.trim())
 }
 
-fn rank(t: PhysicalDeviceType) -> u8 {
+fn kind(t: PhysicalDeviceType) -> DeviceKind {
     match t {
-        PhysicalDeviceType::DiscreteGpu => 0,
-        PhysicalDeviceType::IntegratedGpu => 1,
-        PhysicalDeviceType::VirtualGpu => 2,
-        PhysicalDeviceType::Other => 3,
-        PhysicalDeviceType::Cpu => 4,
-        _ => 5,
+        PhysicalDeviceType::DiscreteGpu => DeviceKind::DiscreteGpu,
+        PhysicalDeviceType::IntegratedGpu => DeviceKind::IntegratedGpu,
+        PhysicalDeviceType::VirtualGpu => DeviceKind::VirtualGpu,
+        PhysicalDeviceType::Cpu => DeviceKind::Cpu,
+        _ => DeviceKind::Other,
     }
 }
 
@@ -126,19 +127,19 @@ fn create_instance(validation: bool, messages: &Arc<Mutex<Vec<String>>>) -> Resu
     Ok((instance, layer_installed))
 }
 
-/// Physical devices with a compute queue, best first, with the queue family index.
-fn compute_devices(instance: &Arc<Instance>) -> Result<Vec<(Arc<PhysicalDevice>, u32)>, SimError> {
-    let mut devices: Vec<(Arc<PhysicalDevice>, u32)> = instance
-        .enumerate_physical_devices()
+/// Physical devices with a compute queue (with the queue family index), their names and kinds.
+type Devices = Vec<((Arc<PhysicalDevice>, u32), String, DeviceKind)>;
+
+fn compute_devices(instance: &Arc<Instance>) -> Result<Devices, SimError> {
+    Ok((instance.enumerate_physical_devices())
         .map_err(|e| unavailable(format!("cannot list Vulkan devices: {e}")))?
         .filter_map(|p| {
             let family =
                 p.queue_family_properties().iter().position(|q| q.queue_flags.intersects(QueueFlags::COMPUTE))?;
-            Some((p, family as u32))
+            let (name, kind) = (p.properties().device_name.clone(), kind(p.properties().device_type));
+            Some(((p, family as u32), name, kind))
         })
-        .collect();
-    devices.sort_by_key(|(p, _)| rank(p.properties().device_type));
-    Ok(devices)
+        .collect())
 }
 
 /// The Vulkan devices vulkano finds here, best first, in words.
@@ -147,11 +148,12 @@ fn compute_devices(instance: &Arc<Instance>) -> Result<Vec<(Arc<PhysicalDevice>,
 /// A sentence saying what to install when there is none.
 pub fn list_devices() -> Result<Vec<String>, String> {
     let shared = shared_instance().map_err(|e| e.to_string())?;
-    let devices = compute_devices(&shared.instance).map_err(|e| e.to_string())?;
+    let mut devices = compute_devices(&shared.instance).map_err(|e| e.to_string())?;
+    devices.sort_by_key(|d| d.2);
     if devices.is_empty() {
         return Err(no_device_reason());
     }
-    Ok(devices.iter().map(|(p, _)| describe(p)).collect())
+    Ok(devices.iter().map(|((p, _), _, _)| describe(p)).collect())
 }
 
 fn no_device_reason() -> String {
@@ -163,39 +165,26 @@ fn no_device_reason() -> String {
 impl VulkanContext {
     /// Opens the best device (a discrete GPU first, lavapipe last), or the first whose name
     /// contains `name_contains`, with `VK_KHR_pipeline_executable_properties` when `statistics`
-    /// asks for it and the device offers it. In debug builds the Khronos validation layer is
-    /// enabled when installed.
+    /// asks for it. In debug builds the Khronos validation layer is enabled when installed.
     ///
     /// # Errors
-    /// [`SimError::Unavailable`] without a loader, without a device, or when none matches.
+    /// [`SimError::Unavailable`] without a loader, without a device, or when none matches;
+    /// [`SimError::Unsupported`] when the statistics are asked for and not offered.
     pub fn new(name_contains: Option<&str>, statistics: bool) -> Result<Self, SimError> {
         let shared = shared_instance()?;
         let (validation, messages) = (shared.validation, shared.messages.clone());
         let devices = compute_devices(&shared.instance)?;
-        let (physical, family) = match name_contains {
-            None => devices.into_iter().next().ok_or_else(|| unavailable(no_device_reason()))?,
-            Some(wanted) => {
-                let names: Vec<String> = devices.iter().map(|(p, _)| p.properties().device_name.clone()).collect();
-                devices
-                    .into_iter()
-                    .find(|(p, _)| p.properties().device_name.to_lowercase().contains(&wanted.to_lowercase()))
-                    .ok_or_else(|| {
-                        unavailable(format!("no device named like '{wanted}'; found: {}", names.join(", ")))
-                    })?
-            }
-        };
+        let (physical, family) = choose_device(devices, name_contains, &no_device_reason()).map_err(unavailable)?;
         let description = describe(&physical);
-        // The compiler's statistics of each pipeline, where asked for and offered (statistics.rs).
-        let wanted = statistics;
-        let statistics = wanted
-            && physical.supported_extensions().khr_pipeline_executable_properties
+        // The compiler's statistics of each pipeline, where asked for (statistics.rs).
+        let offered = physical.supported_extensions().khr_pipeline_executable_properties
             && physical.supported_features().pipeline_executable_info;
-        if wanted && !statistics {
-            eprintln!(
-                "pipeline statistics: {description} does not offer VK_KHR_pipeline_executable_properties (extension {}, feature {})",
-                physical.supported_extensions().khr_pipeline_executable_properties,
-                physical.supported_features().pipeline_executable_info
-            );
+        if statistics && !offered {
+            return Err(SimError::Unsupported {
+                backend: BACKEND_NAME,
+                what: format!("pipeline statistics (GpuTuning::pipeline_statistics) on {description}"),
+                fix: "it does not offer VK_KHR_pipeline_executable_properties: turn them off".into(),
+            });
         }
         let (device, mut queues) = Device::new(
             physical,

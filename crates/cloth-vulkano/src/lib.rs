@@ -15,7 +15,6 @@ mod backend;
 mod context;
 mod raw;
 mod statistics;
-mod timer;
 
 pub use backend::{VulkanoBackend, VulkanoKernel, VulkanoSimulator};
 pub use context::{VulkanContext, list_devices};
@@ -29,6 +28,9 @@ pub const TILED_STEP_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/cl
 
 /// SPIR-V of the XPBD passes, compiled from `shaders/glsl/xpbd.comp`.
 pub const XPBD_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/xpbd.spv"));
+
+/// SPIR-V of the copy kernel that measures the memory bandwidth, from `shaders/glsl/copy.comp`.
+pub const COPY_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/copy.spv"));
 
 /// Backend name used by the tools.
 pub const BACKEND_NAME: &str = "vulkano";

@@ -77,20 +77,6 @@ pub(crate) struct FrameRecorder {
     pub recording: RecordingCommandBuffer,
 }
 
-fn barrier(
-    src_stages: PipelineStages,
-    src_access: AccessFlags,
-    dst_stages: PipelineStages,
-    dst_access: AccessFlags,
-) -> DependencyInfo {
-    DependencyInfo {
-        memory_barriers: [MemoryBarrier { src_stages, src_access, dst_stages, dst_access, ..Default::default() }]
-            .into_iter()
-            .collect(),
-        ..Default::default()
-    }
-}
-
 impl FrameRecorder {
     /// Begins a one-time primary command buffer whose first command waits for everything
     /// submitted before it (uploads, read-backs, earlier frames) and makes its writes visible.
@@ -103,48 +89,35 @@ impl FrameRecorder {
         )
         .map_err(|e| format!("command buffer: {e}"))?;
         let mut recorder = Self { recording };
-        recorder.barrier(
-            PipelineStages::ALL_COMMANDS,
-            AccessFlags::MEMORY_WRITE,
-            PipelineStages::ALL_COMMANDS,
-            AccessFlags::MEMORY_READ | AccessFlags::MEMORY_WRITE,
-        )?;
+        recorder.barrier(PipelineStages::ALL_COMMANDS, AccessFlags::MEMORY_WRITE, AccessFlags::MEMORY_READ)?;
         Ok(recorder)
     }
 
-    /// Records a global memory barrier.
-    pub fn barrier(
-        &mut self,
-        src_stages: PipelineStages,
-        src_access: AccessFlags,
-        dst_stages: PipelineStages,
-        dst_access: AccessFlags,
-    ) -> Result<(), String> {
+    /// Records a global memory barrier: what `stages` wrote (`written`) is visible to the same
+    /// stages after it, for `then` and writing.
+    fn barrier(&mut self, stages: PipelineStages, written: AccessFlags, then: AccessFlags) -> Result<(), String> {
+        let barrier = MemoryBarrier {
+            src_stages: stages,
+            src_access: written,
+            dst_stages: stages,
+            dst_access: then | written,
+            ..Default::default()
+        };
+        let dependency = DependencyInfo { memory_barriers: [barrier].into_iter().collect(), ..Default::default() };
         // SAFETY: a memory barrier has no resource to keep alive.
-        unsafe { self.recording.pipeline_barrier(&barrier(src_stages, src_access, dst_stages, dst_access)) }
-            .map_err(|e| format!("barrier: {e}"))?;
+        unsafe { self.recording.pipeline_barrier(&dependency) }.map_err(|e| format!("barrier: {e}"))?;
         Ok(())
     }
 
     /// The barrier between two dispatches: the next one may read and write what this one wrote.
     pub fn between_dispatches(&mut self) -> Result<(), String> {
-        self.barrier(
-            PipelineStages::COMPUTE_SHADER,
-            AccessFlags::SHADER_WRITE,
-            PipelineStages::COMPUTE_SHADER,
-            AccessFlags::SHADER_READ | AccessFlags::SHADER_WRITE,
-        )
+        self.barrier(PipelineStages::COMPUTE_SHADER, AccessFlags::SHADER_WRITE, AccessFlags::SHADER_READ)
     }
 
     /// Ends the command buffer after a barrier that makes its writes visible to whatever is
     /// submitted after it (read-backs, the next frame).
     pub fn end(mut self, no_resources: Arc<PrimaryAutoCommandBuffer>) -> Result<Arc<RawPrimary>, String> {
-        self.barrier(
-            PipelineStages::ALL_COMMANDS,
-            AccessFlags::MEMORY_WRITE,
-            PipelineStages::ALL_COMMANDS,
-            AccessFlags::MEMORY_READ | AccessFlags::MEMORY_WRITE,
-        )?;
+        self.barrier(PipelineStages::ALL_COMMANDS, AccessFlags::MEMORY_WRITE, AccessFlags::MEMORY_READ)?;
         // SAFETY: every command recorded is complete (no open render pass or query).
         let inner = unsafe { self.recording.end() }.map_err(|e| format!("ending the command buffer: {e}"))?;
         Ok(Arc::new(RawPrimary { inner, state: Mutex::new(CommandBufferState::default()), no_resources }))

@@ -14,17 +14,10 @@ use vulkano::shader::{ShaderModule, SpecializationConstant};
 /// Why no statistics came back.
 #[derive(Debug, thiserror::Error)]
 pub(crate) enum StatisticsError {
-    #[error("the device was opened without VK_KHR_pipeline_executable_properties")]
-    Unavailable,
     #[error("specialization constant {0} is neither a bool nor a u32, which this diagnostic does not pass")]
     Constant(u32),
     #[error("the driver answered {0:?}")]
     Vulkan(vk::Result),
-}
-
-/// Whether `device` was opened with the extension and feature the statistics need.
-pub(crate) fn available(device: &Device) -> bool {
-    device.enabled_extensions().khr_pipeline_executable_properties && device.enabled_features().pipeline_executable_info
 }
 
 /// The driver's statistics of the compute pipeline of `module`'s `main` under `layout` and the
@@ -33,17 +26,14 @@ pub(crate) fn available(device: &Device) -> bool {
 /// Vulkan calls, with the flag, and destroys it after.
 ///
 /// # Errors
-/// [`StatisticsError`]: the device lacks the extension, a constant is of a type this does not
-/// pass, or the driver failed a call.
+/// [`StatisticsError`]: a constant is of a type this does not pass, or the driver failed a call.
+/// The device must have been opened with the extension and its feature.
 pub(crate) fn of(
     device: &Arc<Device>,
     module: &ShaderModule,
     layout: &PipelineLayout,
     constants: &[(u32, SpecializationConstant)],
 ) -> Result<Vec<String>, StatisticsError> {
-    if !available(device) {
-        return Err(StatisticsError::Unavailable);
-    }
     let mut data: Vec<u8> = Vec::new();
     let mut entries: Vec<vk::SpecializationMapEntry> = Vec::new();
     for (id, constant) in constants {

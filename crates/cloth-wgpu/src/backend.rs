@@ -4,12 +4,12 @@ use std::sync::{Arc, Mutex};
 
 use cloth_core::SimError;
 use cloth_gpu::plan::{BindGroupDesc, Binding, BufferDesc, BufferUsage, KernelDesc, PipelineDesc, Shader};
+use cloth_gpu::simulator::TIMER_PAIRS;
 use cloth_gpu::{DeviceLimits, Frame, GpuBackend, GpuTuning};
 use wgpu::util::DeviceExt;
 
 use crate::context::GpuContext;
-use crate::timer::GpuTimer;
-use crate::{BACKEND_NAME, STEP_SHADER, XPBD_SHADER, tiled_shader_source};
+use crate::{BACKEND_NAME, COPY_SHADER, STEP_SHADER, XPBD_SHADER, tiled_shader_source};
 
 /// The cloth simulated by WGSL compute shaders through wgpu.
 pub type WgpuSimulator = cloth_gpu::GpuSimulator<WgpuBackend>;
@@ -17,8 +17,9 @@ pub type WgpuSimulator = cloth_gpu::GpuSimulator<WgpuBackend>;
 /// A wgpu device running the simulation's kernels.
 pub struct WgpuBackend {
     context: GpuContext,
-    /// GPU time of each submission, while timing is on and the device can.
-    timer: Option<GpuTimer>,
+    /// Timestamp pairs of the submissions, and the buffer they are resolved into (one every
+    /// `QUERY_RESOLVE_BUFFER_ALIGNMENT` bytes), once timing was asked for and the device can.
+    timer: Option<(wgpu::QuerySet, wgpu::Buffer)>,
     /// Why the device was lost, once it is.
     lost: Arc<Mutex<Option<String>>>,
 }
@@ -142,6 +143,7 @@ impl GpuBackend for WgpuBackend {
             Shader::Step => ("cloth_step.wgsl", "substep", STEP_SHADER.to_string()),
             Shader::Tiled(tile) => ("cloth_step_tiled.wgsl", "substeps", tiled_shader_source(&tile)),
             Shader::Xpbd => ("xpbd.wgsl", "xpbd", XPBD_SHADER.to_string()),
+            Shader::Copy => ("copy.wgsl", "copy", COPY_SHADER.to_string()),
         };
         let descriptor =
             wgpu::ShaderModuleDescriptor { label: Some(name), source: wgpu::ShaderSource::Wgsl(source.into()) };
@@ -154,7 +156,8 @@ impl GpuBackend for WgpuBackend {
         // count rebuilds the simulator); XPBD's constraints have `a`, `b` below the vertex count
         // and `kind` at most 2, and its colour ranges lie inside the constraint buffer; RK4's
         // stages run only with the full scratch bound; the tiled kernel reads only tile cells it
-        // wrote. Every loop is bounded: over the spheres, and over the fused substeps.
+        // wrote; the copy kernel's loop stops at its buffer's length. Every loop is bounded: over
+        // the spheres, the fused substeps, the copy's elements.
         let module = unsafe { device.create_shader_module_trusted(descriptor, wgpu::ShaderRuntimeChecks::unchecked()) };
         let entries: Vec<wgpu::BindGroupLayoutEntry> = (desc.bindings.iter().enumerate())
             .map(|(binding, b)| wgpu::BindGroupLayoutEntry {
@@ -186,12 +189,7 @@ impl GpuBackend for WgpuBackend {
         Ok(WgpuKernel { module, layout, pipeline_layout, bindings: desc.bindings.clone(), entry_point })
     }
 
-    fn create_pipeline(
-        &mut self,
-        kernel: &WgpuKernel,
-        desc: &PipelineDesc,
-        _tuning: &GpuTuning,
-    ) -> Result<wgpu::ComputePipeline, SimError> {
+    fn create_pipeline(&mut self, kernel: &WgpuKernel, desc: &PipelineDesc) -> Result<wgpu::ComputePipeline, SimError> {
         // The tile's sizes are written into the tiled kernel's source (they size its workgroup
         // arrays); the rest are overrides.
         let constants: Vec<(&str, f64)> = (desc.constants.iter())
@@ -245,10 +243,16 @@ impl GpuBackend for WgpuBackend {
         let mut encoder =
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth frames") });
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("cloth substeps"),
-                timestamp_writes: self.timer.as_ref().map(GpuTimer::pass_writes),
-            });
+            let timestamp_writes = match (&self.timer, frame.timestamps) {
+                (Some((query_set, _)), Some(pair)) => Some(wgpu::ComputePassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: Some(2 * pair),
+                    end_of_pass_write_index: Some(2 * pair + 1),
+                }),
+                _ => None,
+            };
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("cloth substeps"), timestamp_writes });
             let mut bound = None;
             for d in frame.dispatches {
                 if bound != Some(d.pipeline) {
@@ -260,8 +264,9 @@ impl GpuBackend for WgpuBackend {
                 pass.dispatch_workgroups(d.workgroups[0], d.workgroups[1], 1);
             }
         }
-        if let Some(timer) = &mut self.timer {
-            timer.resolve(&mut encoder);
+        if let (Some((queries, resolved)), Some(pair)) = (&self.timer, frame.timestamps) {
+            let offset = pair as u64 * wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
+            encoder.resolve_query_set(queries, 2 * pair..2 * pair + 2, resolved, offset);
         }
         self.context.queue.submit([encoder.finish()]);
         // Frees finished work without waiting for the GPU.
@@ -316,26 +321,37 @@ impl GpuBackend for WgpuBackend {
         Ok(out)
     }
 
-    fn set_timing(&mut self, on: bool) -> bool {
-        if !on {
-            self.timer = None;
-        } else if self.timer.is_none() {
-            self.timer = GpuTimer::new(&self.context.device, &self.context.queue);
+    fn wait(&mut self) -> Result<(), SimError> {
+        let waited = self.context.device.poll(wgpu::PollType::wait_indefinitely());
+        waited.map(|_| ()).map_err(|e| device_error(format!("waiting for the GPU: {e}")))
+    }
+
+    fn create_timer(&mut self) -> bool {
+        let device = &self.context.device;
+        if self.timer.is_none() && device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("cloth advance timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * TIMER_PAIRS,
+            });
+            let resolved = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("cloth resolved timestamps"),
+                size: TIMER_PAIRS as u64 * wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            self.timer = Some((queries, resolved));
         }
         self.timer.is_some()
     }
 
-    fn timer_full(&self) -> bool {
-        self.timer.as_ref().is_some_and(GpuTimer::is_full)
-    }
-
-    fn take_timer_seconds(&mut self) -> Result<f64, SimError> {
-        let Some(timer) = &self.timer else { return Ok(0.0) };
-        let (resolved, size) = (timer.resolved.clone(), timer.pending_bytes());
-        if size == 0 {
-            return Ok(0.0);
-        }
-        let bytes = self.read(&[(&resolved, size)])?;
-        Ok(self.timer.as_mut().map_or(0.0, |t| t.take(&bytes[0])))
+    fn read_timer(&mut self, pairs: u32) -> Result<f64, SimError> {
+        let Some((_, resolved)) = self.timer.clone() else { return Ok(0.0) };
+        let stride = wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
+        let bytes = self.read(&[(&resolved, pairs as u64 * stride)])?.remove(0);
+        let ticks: u64 = (bytes.chunks(stride as usize).map(|c| bytemuck::pod_read_unaligned::<[u64; 2]>(&c[..16])))
+            .map(|[begin, end]| end.saturating_sub(begin))
+            .sum();
+        Ok(ticks as f64 * self.context.queue.get_timestamp_period() as f64 * 1e-9)
     }
 }

@@ -1,6 +1,7 @@
 //! Finding an adapter and opening a device.
 
 use cloth_core::SimError;
+use cloth_gpu::geometry::{DeviceKind, choose_device};
 
 use crate::BACKEND_NAME;
 
@@ -23,13 +24,13 @@ fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} ({:?}, {:?}{})", info.name, info.backend, info.device_type, driver.trim_end())
 }
 
-fn rank(device_type: wgpu::DeviceType) -> u8 {
+fn kind(device_type: wgpu::DeviceType) -> DeviceKind {
     match device_type {
-        wgpu::DeviceType::DiscreteGpu => 0,
-        wgpu::DeviceType::IntegratedGpu => 1,
-        wgpu::DeviceType::VirtualGpu => 2,
-        wgpu::DeviceType::Other => 3,
-        wgpu::DeviceType::Cpu => 4,
+        wgpu::DeviceType::DiscreteGpu => DeviceKind::DiscreteGpu,
+        wgpu::DeviceType::IntegratedGpu => DeviceKind::IntegratedGpu,
+        wgpu::DeviceType::VirtualGpu => DeviceKind::VirtualGpu,
+        wgpu::DeviceType::Other => DeviceKind::Other,
+        wgpu::DeviceType::Cpu => DeviceKind::Cpu,
     }
 }
 
@@ -48,14 +49,15 @@ fn instance() -> &'static wgpu::Instance {
     })
 }
 
-/// Adapters able to run compute shaders, best first.
-fn compute_adapters() -> Vec<wgpu::Adapter> {
-    let mut adapters: Vec<wgpu::Adapter> = pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all()))
-        .into_iter()
+/// Adapters able to run compute shaders, their names and kinds.
+fn compute_adapters() -> Vec<(wgpu::Adapter, String, DeviceKind)> {
+    (pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all())).into_iter())
         .filter(|a| a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS))
-        .collect();
-    adapters.sort_by_key(|a| rank(a.get_info().device_type));
-    adapters
+        .map(|a| {
+            let info = a.get_info();
+            (a, info.name, kind(info.device_type))
+        })
+        .collect()
 }
 
 /// The adapters wgpu finds here that can run the simulation, best first, in words.
@@ -63,7 +65,9 @@ fn compute_adapters() -> Vec<wgpu::Adapter> {
 /// # Errors
 /// A sentence saying what to install when there is none.
 pub fn list_adapters() -> Result<Vec<String>, String> {
-    let list: Vec<String> = compute_adapters().iter().map(|a| describe(&a.get_info())).collect();
+    let mut adapters = compute_adapters();
+    adapters.sort_by_key(|a| a.2);
+    let list: Vec<String> = adapters.iter().map(|a| describe(&a.0.get_info())).collect();
     if list.is_empty() { Err(no_adapter_reason()) } else { Ok(list) }
 }
 
@@ -102,19 +106,7 @@ impl GpuContext {
     /// [`SimError::Unavailable`] when no adapter matches or the device cannot be opened.
     pub fn new(name_contains: Option<&str>) -> Result<Self, SimError> {
         let unavailable = |reason: String| SimError::Unavailable { backend: BACKEND_NAME, reason };
-        let adapters = compute_adapters();
-        let adapter = match name_contains {
-            None => adapters.into_iter().next().ok_or_else(|| unavailable(no_adapter_reason()))?,
-            Some(wanted) => {
-                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
-                adapters
-                    .into_iter()
-                    .find(|a| a.get_info().name.to_lowercase().contains(&wanted.to_lowercase()))
-                    .ok_or_else(|| {
-                        unavailable(format!("no adapter named like '{wanted}'; found: {}", names.join(", ")))
-                    })?
-            }
-        };
+        let adapter = choose_device(compute_adapters(), name_contains, &no_adapter_reason()).map_err(unavailable)?;
         let (features, limits) = device_requirements(&adapter);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("cloth device"),

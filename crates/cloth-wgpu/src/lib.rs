@@ -13,17 +13,10 @@
 #![warn(missing_docs)]
 
 mod backend;
-mod bandwidth;
 mod context;
-mod timer;
 
 pub use backend::{WgpuBackend, WgpuKernel, WgpuSimulator};
-pub use bandwidth::{CopyBandwidth, copy_bandwidth};
 pub use context::{GpuContext, device_requirements, list_adapters};
-
-/// The WGSL view of the structs shared with the host (`shaders/wgsl/layout.wgsl`), which every
-/// module that uses them starts with.
-pub const LAYOUT_SHADER: &str = include_str!("../../../shaders/wgsl/layout.wgsl");
 
 /// WGSL source of the force-based substep kernel: `layout.wgsl`, `common.wgsl` (effect
 /// constants and force model), `cloth_step.wgsl`.
@@ -57,6 +50,9 @@ pub const XPBD_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/xpbd.wgsl")
 );
+
+/// WGSL source of the copy kernel that measures the memory bandwidth (`copy.wgsl`).
+pub const COPY_SHADER: &str = include_str!("../../../shaders/wgsl/copy.wgsl");
 
 /// Backend name used by the tools.
 pub const BACKEND_NAME: &str = "wgpu";
