@@ -12,12 +12,15 @@
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
 use cloth_gpu::{GpuSimulator, GpuTuning};
 
+/// Creates a simulator of a backend; a GPU backend lays its work out as the tuning says.
+pub type Factory = fn(&Scene, &GpuTuning) -> Result<Box<dyn Simulator>, SimError>;
+
 /// A backend under test.
 pub struct Backend {
     /// Its name, as in `cloth backends`.
     pub name: &'static str,
     /// Creates a simulator; a GPU backend lays its work out as the tuning says.
-    pub tuned: fn(&Scene, &GpuTuning) -> Result<Box<dyn Simulator>, SimError>,
+    pub tuned: Factory,
 }
 
 impl Backend {

@@ -97,7 +97,10 @@ fn reflect(spirv: &[u8]) -> Reflection {
 /// The laid-out struct whose members are named `names`: `(member, offset)` and its array stride
 /// (its size) if it is the element of a runtime array. Only the buffer-layout copy of a struct
 /// carries Offset decorations (a copy for function-local values has none).
-fn spirv_struct(r: &Reflection, names: &[&str]) -> Option<(Vec<(String, u32)>, Option<u32>)> {
+/// A struct's `(member, offset)` list and its array stride, if any.
+type SpirvStruct = (Vec<(String, u32)>, Option<u32>);
+
+fn spirv_struct(r: &Reflection, names: &[&str]) -> Option<SpirvStruct> {
     r.structs.iter().find_map(|id| {
         let mut members = r.member_names.get(id).cloned().unwrap_or_default();
         members.sort();

@@ -16,6 +16,9 @@ use cloth_gpu::{GpuSimulator, GpuTuning};
 /// opens the adapter it names (the CPU backends have nothing to tune).
 pub type Factory = fn(&Scene, &GpuTuning) -> Result<Box<dyn Simulator>, SimError>;
 
+/// Measures the copy bandwidth of the device a tuning names ([`cloth_gpu::bandwidth`]).
+pub type BandwidthProbe = fn(&GpuTuning) -> Result<CopyBandwidth, SimError>;
+
 /// A backend the CLI can run.
 pub struct Backend {
     /// Name used with `--backend`.
@@ -27,7 +30,7 @@ pub struct Backend {
     /// Lists the adapters this backend can use here, or says why none.
     pub adapters: fn() -> Result<Vec<String>, String>,
     /// Measures the device's copy bandwidth, the memory ceiling of a substep (GPU backends).
-    pub copy_bandwidth: Option<fn(&GpuTuning) -> Result<CopyBandwidth, SimError>>,
+    pub copy_bandwidth: Option<BandwidthProbe>,
 }
 
 fn cpu<S: Simulator + 'static>(scene: &Scene, _tuning: &GpuTuning) -> Result<Box<dyn Simulator>, SimError> {
