@@ -1,108 +1,127 @@
 #!/usr/bin/env bash
-# Runs on a borrowed GPU machine (see the device tool): checks both GPU backends on real hardware
-# and measures them. Expects release binaries built on the dev machine in devbin/ (cloth, and the
-# conformance test binary as devbin/conformance) and the Vulkan loader's .deb files in .gl/.
-# Writes its logs and CSVs under $OUT.
+# Checks both GPU backends on the GPU of this machine and measures them: the checks CI cannot run
+# (CI has only lavapipe, a CPU implementation of Vulkan) and the figures of docs/performance.md.
 #
-# Usage: bash scripts/gpu-check.sh [conformance] [stability] [study] [bench] [effects]
-#        (default: conformance study bench)
-#   conformance  the conformance suite with CI=1 (a missing adapter fails), and `cloth run` on each
-#                GPU backend
-#   study        `cloth study accuracy` on every backend, writing the report docs/accuracy.md
-#                (and its CSV, SVG and PNG), copied to $OUT
-#   stability    the stability suite's GPU cases (devbin/stability) with CI=1, then the soak at a
-#                million substeps on each backend (SOAK_SECONDS each, default 200)
+# Usage: bash scripts/gpu-check.sh [conformance] [stability] [bench] [effects] [tuning] [compare] [peer] [study]
+#        (default: conformance bench)
+#
+#   conformance  the conformance suite and the block-order test with CI=1 (a missing adapter
+#                fails), then `cloth run` on each GPU backend
+#   stability    the stability suite's GPU cases with CI=1, then the soak at a million substeps on
+#                each backend (SOAK_SECONDS each, default 200: XPBD's million substeps do not end
+#                in that; 0 skips the soak)
 #   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
-#   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs on both GPU backends
-#                (EFFECT_GRIDS, default 128,512; EFFECT_SUBSTEPS, default the scene's own)
-#   sweep        the kernels' tuning knobs, as FUSED:TILE:WORKGROUP:BLOCK (CLOTH_FUSED_SUBSTEPS,
-#                CLOTH_TILE, CLOTH_WORKGROUP_SIZE, CLOTH_BLOCK_WIDTH; SWEEP overrides the list):
-#                128² x 53, 1024² and 2048² x 64 on both backends, one CSV ($OUT/sweep.csv, a
-#                `config` column first)
-#   knobs        the same bench under several settings of the environment knobs, one after another
-#                in one run (KNOBS: space-separated entries, each `base` or comma-separated
-#                NAME=VALUE pairs, e.g. "base CLOTH_ALTERNATE_ORDER=0 CLOTH_ALTERNATE_ORDER=1,CLOTH_BLOCK_WIDTH=64";
-#                KNOB_GRIDS, KNOB_SUBSTEPS, KNOB_FRAMES; KNOB_STATS=1 prints vulkano's registers;
-#                the pseudo-knob CLOTH_BIN=path runs another build of cloth, carried beside devbin,
-#                to compare builds in one run): one CSV ($OUT/knobs.csv, a quoted `knobs` column first)
+#   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs (EFFECT_GRIDS,
+#                default 128,512)
+#   tuning       the bench at 512², 1024² and 2048² × 64 under each GPU tuning in TUNINGS (a list
+#                separated by ';' of `cloth bench` flags; default: the defaults, then block widths
+#                32 and 128, workgroups of 128 and 512, forward and alternating block orders)
+#   compare      the bench rows of docs/performance.md (128² × 53, 1024² and 2048² × 64) with this
+#                build and with the build at OTHER_CLOTH, by turns, ROUNDS times (default 2)
+#   peer         NVIDIA Warp's own cloth benchmark and its CuPy and PyTorch versions on the same
+#                grids (scripts/peer-cloth.py; warp-lang 1.0.2 must be importable; PEER_GRIDS,
+#                default 128,1024,2048)
+#   study        `cloth study accuracy` on every backend, writing docs/accuracy.md and its data
+#
+# The binaries: CLOTH (default target/release/cloth) and, for conformance and stability, the test
+# binaries CONFORMANCE, BLOCK_ORDER and STABILITY (default: built with cargo, when there is one).
+# Logs and CSVs go to OUT (default gpu-check-out/).
 set -uo pipefail
-OUT=${OUT:-/tmp/out}
+OUT=${OUT:-gpu-check-out}
+CLOTH=${CLOTH:-target/release/cloth}
 mkdir -p "$OUT"
-checks=${*:-conformance study bench}
-for f in .gl/*.deb; do dpkg -x "$f" /; done
-ldconfig
-export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-# The conformance binary looks for the scenes where it was built.
-mkdir -p /work && [ -e /work/main ] || ln -sfn "$PWD" /work/main
-chmod +x devbin/*
+checks=${*:-conformance bench}
+
+# A test binary: the one named in the variable, else the one cargo builds.
+test_binary() {
+  local given=$1 test=$2
+  if [ -n "$given" ]; then echo "$given"; return; fi
+  cargo test --release -p cloth-conformance --test "$test" --no-run --message-format=json 2>/dev/null |
+    sed -n 's/.*"executable":"\([^"]*\)".*/\1/p' | tail -1
+}
+
 {
-  nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
-  echo "== cloth backends"; devbin/cloth backends 2>&1
+  command -v nvidia-smi > /dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
+  echo "== cloth backends"; "$CLOTH" backends 2>&1
 } | tee "$OUT/device.txt"
+
 if [[ " $checks " == *" conformance "* ]]; then
   echo "== conformance (CI=1: a missing adapter fails)"
-  CI=1 devbin/conformance --test-threads 4 2>&1 | tee "$OUT/conformance.txt" | grep -E "^test |test result|expected difference|panicked" | tail -70
+  CI=1 "$(test_binary "${CONFORMANCE:-}" conformance)" --test-threads 4 2>&1 | tee "$OUT/conformance.txt" |
+    grep -E "^test |test result|expected difference|panicked" | tail -80
+  CI=1 "$(test_binary "${BLOCK_ORDER:-}" block_order)" 2>&1 | tee "$OUT/block_order.txt" | grep -E "^test |test result"
   for b in wgpu vulkano; do
     echo "== cloth run --backend $b" | tee -a "$OUT/device.txt"
-    devbin/cloth run --backend "$b" --json > "/tmp/run-$b.json" 2>&1
-    grep -E '"(adapter|nan_count|max_penetration_fraction_of_radius|wall_ms_per_frame|submissions_per_frame|host_waits_per_frame)"' "/tmp/run-$b.json" | tee -a "$OUT/device.txt"
+    "$CLOTH" run --backend "$b" --json 2>&1 |
+      grep -E '"(adapter|nan_count|max_penetration_fraction_of_radius|wall_ms_per_frame|submissions_per_frame|host_waits_per_frame)"' | tee -a "$OUT/device.txt"
   done
 fi
-if [[ " $checks " == *" study "* ]]; then
-  echo "== study accuracy (report: docs/accuracy.md)"
-  devbin/cloth study accuracy --backends cpu,cpu-f64,wgpu,vulkano --report docs/accuracy.md 2>&1 | tee "$OUT/study.txt"
-  cp docs/accuracy.md docs/accuracy.csv docs/accuracy.svg docs/accuracy.png "$OUT/"
+
+if [[ " $checks " == *" stability "* ]]; then
+  stability=$(test_binary "${STABILITY:-}" stability)
+  echo "== stability (GPU cases, CI=1)"
+  CI=1 "$stability" --test-threads 2 wgpu:: vulkano:: 2>&1 | tee "$OUT/stability.txt" | grep -E "^test |test result|panicked" | tail -60
+  [ "${SOAK_SECONDS:-200}" = 0 ] || for b in wgpu vulkano; do
+    echo "== the soak at a million substeps on $b (${SOAK_SECONDS:-200} s at most)"
+    CI=1 CLOTH_SOAK_SUBSTEPS=1000000 timeout "${SOAK_SECONDS:-200}" "$stability" --nocapture "$b::soak" 2>&1 |
+      tee -a "$OUT/soak.txt" | grep -E "substeps, energy|^test |test result|panicked"
+  done
 fi
+
 if [[ " $checks " == *" bench "* ]]; then
   echo "== bench"
-  devbin/cloth bench --backends wgpu,vulkano --grids 32,128,512,1024,2048 --substeps 16,64,scaled --frames 20 --csv "$OUT/bench.csv" 2>&1 | tee "$OUT/bench.txt"
+  "$CLOTH" bench --backends wgpu,vulkano --grids 32,128,512,1024,2048 --substeps 16,64,scaled --frames 20 \
+    --csv "$OUT/bench.csv" 2>&1 | tee "$OUT/bench.txt"
 fi
-if [[ " $checks " == *" stability "* ]]; then
-  echo "== stability (GPU cases, CI=1)"
-  CI=1 devbin/stability --test-threads 2 wgpu:: vulkano:: 2>&1 | tee "$OUT/stability.txt" | grep -E "^test |test result|panicked" | tail -60
-  # GPU cases hold one lock (tests/src/lib.rs, gpu_lock), so the two backends' soaks run one after
-  # the other: each gets its own box. Euler, Verlet and RK4 print within it on the H100; XPBD's
-  # million substeps (about 10^8 dispatches) do not, and its line is not expected.
-  : > "$OUT/soak.txt"
-  for b in wgpu vulkano; do
-    echo "== the soak at a million substeps on $b (${SOAK_SECONDS:-200} s at most)"
-    CI=1 CLOTH_SOAK_SUBSTEPS=1000000 timeout "${SOAK_SECONDS:-200}" devbin/stability --nocapture "$b::soak" 2>&1 | tee -a "$OUT/soak.txt" | grep -E "substeps, energy|^test |test result|panicked"
-  done
-fi
+
 if [[ " $checks " == *" effects "* ]]; then
   echo "== bench --effects"
-  devbin/cloth bench --effects --backends wgpu,vulkano --grids "${EFFECT_GRIDS:-128,512}" \
-    ${EFFECT_SUBSTEPS:+--substeps "$EFFECT_SUBSTEPS"} --frames 10 --csv "$OUT/effects.csv" 2>&1 | tee "$OUT/effects.txt"
+  "$CLOTH" bench --effects --backends wgpu,vulkano --grids "${EFFECT_GRIDS:-128,512}" --frames 10 \
+    --csv "$OUT/effects.csv" 2>&1 | tee "$OUT/effects.txt"
 fi
-if [[ " $checks " == *" sweep "* ]]; then
-  echo "== sweep: fused substeps : tile : workgroup size : block width"
-  configs=${SWEEP:-"0:32x16:256:0 0:32x16:256:64 2:32x16:256:64 2:32x32:256:64"}
-  : > "$OUT/sweep.csv"
-  for c in $configs; do
-    IFS=: read -r k tile wg block <<< "$c"
-    CLOTH_FUSED_SUBSTEPS=$k CLOTH_TILE=$tile CLOTH_WORKGROUP_SIZE=$wg CLOTH_BLOCK_WIDTH=$block devbin/cloth bench \
-      --backends wgpu,vulkano --grids ${SWEEP_GRIDS:-128,1024,2048} --substeps 53,64 --frames 20 --csv /tmp/sweep.csv > /tmp/sweep.txt 2>&1
-    grep -E "refused|error" /tmp/sweep.txt | head -2 | sed "s|^|$c |"
-    grep -E "^(wgpu|vulkano) " /tmp/sweep.txt | sed "s|^|$c |" | tee -a "$OUT/sweep.txt"
-    if [ ! -s "$OUT/sweep.csv" ]; then sed -n 1p /tmp/sweep.csv | sed 's/^/config,/' > "$OUT/sweep.csv"; fi
-    sed 1d /tmp/sweep.csv | sed "s|^|$c,|" >> "$OUT/sweep.csv"
+
+# Runs the bench with the binary $1 and the flags $3.., labelling its CSV rows with $2.
+labelled_bench() {
+  local bin=$1 label=$2 csv=$3; shift 3
+  "$bin" bench --backends wgpu,vulkano "$@" --csv /tmp/gpu-check-rows.csv > /tmp/gpu-check-rows.txt 2>&1
+  grep -E "refused|error" /tmp/gpu-check-rows.txt | sort -u | head -4 | sed "s|^|$label: |"
+  grep -E "^(wgpu|vulkano) " /tmp/gpu-check-rows.txt | sed "s|^|$label |"
+  [ -s "$csv" ] || sed -n 1p /tmp/gpu-check-rows.csv | sed 's/^/label,/' > "$csv"
+  sed 1d /tmp/gpu-check-rows.csv | sed "s|^|\"$label\",|" >> "$csv"
+}
+
+if [[ " $checks " == *" tuning "* ]]; then
+  echo "== tuning: the bench under each GPU tuning"
+  : > "$OUT/tuning.csv"
+  IFS=';' read -r -a tunings <<< "${TUNINGS:-;--block-width 32;--block-width 128;--workgroup-size 128;--workgroup-size 512;--block-order forward;--block-order alternating}"
+  for t in "${tunings[@]}"; do
+    # shellcheck disable=SC2086
+    t=$(echo "$t" | xargs)
+    labelled_bench "$CLOTH" "${t:-defaults}" "$OUT/tuning.csv" --grids 512,1024,2048 --substeps 64 --frames 20 $t | tee -a "$OUT/tuning.txt"
   done
 fi
-if [[ " $checks " == *" knobs "* ]]; then
-  echo "== knobs: the bench under each setting"
-  : > "$OUT/knobs.csv"
-  for c in ${KNOBS:-base}; do
-    settings=()
-    [ "$c" != base ] && IFS=, read -r -a settings <<< "$c"
-    bin=devbin/cloth
-    for setting in "${settings[@]}"; do [[ $setting == CLOTH_BIN=* ]] && bin=${setting#CLOTH_BIN=}; done
-    chmod +x "$bin"
-    env "${settings[@]}" CLOTH_PIPELINE_STATS=${KNOB_STATS:-0} "$bin" bench --backends wgpu,vulkano \
-      --grids ${KNOB_GRIDS:-512,1024,2048} --substeps ${KNOB_SUBSTEPS:-64} --frames ${KNOB_FRAMES:-20} \
-      --csv /tmp/knobs.csv > /tmp/knobs.txt 2>&1
-    grep -E "refused|error|pipeline statistics" /tmp/knobs.txt | sort -u | head -16 | sed "s|^|$c |"
-    grep -E "^(wgpu|vulkano) " /tmp/knobs.txt | sed "s|^|$c |" | tee -a "$OUT/knobs.txt"
-    if [ ! -s "$OUT/knobs.csv" ]; then sed -n 1p /tmp/knobs.csv | sed 's/^/knobs,/' > "$OUT/knobs.csv"; fi
-    sed 1d /tmp/knobs.csv | sed "s|^|\"$c\",|" >> "$OUT/knobs.csv"
+
+if [[ " $checks " == *" compare "* ]]; then
+  echo "== compare: this build against ${OTHER_CLOTH:?OTHER_CLOTH names the other build}"
+  : > "$OUT/compare.csv"
+  for round in $(seq "${ROUNDS:-2}"); do
+    for build in "$CLOTH" "$OTHER_CLOTH"; do
+      label="$(basename "$build") round $round"
+      labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 128 --substeps scaled --frames 20 | tee -a "$OUT/compare.txt"
+      labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 1024,2048 --substeps 64 --frames 20 | tee -a "$OUT/compare.txt"
+    done
   done
+fi
+
+if [[ " $checks " == *" peer "* ]]; then
+  echo "== peer: NVIDIA Warp's cloth benchmark and its CuPy and PyTorch versions"
+  python3 scripts/peer-cloth.py --grids "${PEER_GRIDS:-128,1024,2048}" --substeps 16,64 --frames 20 \
+    > "$OUT/peer-cloth.csv" 2> "$OUT/peer-cloth.txt"
+  cat "$OUT/peer-cloth.csv"
+fi
+
+if [[ " $checks " == *" study "* ]]; then
+  echo "== study accuracy (report: docs/accuracy.md)"
+  "$CLOTH" study accuracy --backends cpu,cpu-f64,wgpu,vulkano --report docs/accuracy.md 2>&1 | tee "$OUT/study.txt"
+  cp docs/accuracy.md docs/accuracy.csv docs/accuracy.svg docs/accuracy.png "$OUT/"
 fi

@@ -7,7 +7,7 @@
 
 #include "effects.glsl"
 
-// Which integration stage this pipeline runs: 0 semi-implicit Euler (the brief's); 1 and 2 the
+// Which integration stage this pipeline runs: 0 semi-implicit Euler (the model's); 1 and 2 the
 // two halves of velocity Verlet: 1 = kick and drift (v½ = v + ½Δt F(x, v)/m, x' = x + Δt v½),
 // 2 = the second kick (v' = v½ + ½Δt F(x', v½)/m, positions untouched); 3 to 6 the four stages
 // of classical Runge–Kutta, each evaluating a_k = F(x_k, v_k)/m at the state it reads:
@@ -33,7 +33,7 @@ layout(set = 0, binding = 6, std430) buffer MaxPenetration { uint max_penetratio
 // running sums Σx and Σv, four vec4s. Each invocation touches only its own vertex's.
 layout(set = 0, binding = 7, std430) buffer Rk4Scratch { vec4 rk4_scratch[]; };
 
-// Semi-implicit Euler's packed state (cloth_core::layout::PackedState; 64-byte placeholders for
+// Semi-implicit Euler's packed state (cloth_gpu::geometry; 64-byte placeholders for
 // the other integrators): 24 bytes a vertex instead of 32, for the substeps inside a submission.
 // The first substep of a submission reads the vec4 state above and writes the packed one, the
 // ones between read and write the packed state, the last reads it and writes the vec4 state
@@ -132,13 +132,13 @@ void add_stencil_springs(inout vec3 force, int i, int j, uint index, vec3 x, vec
     }
 }
 
-// Vertices along i of the block of the grid one workgroup updates (cloth_core::layout::
+// Vertices along i of the block of the grid one workgroup updates (GpuTuning::
 // block_width): a workgroup updates BLOCK_WIDTH × (workgroup size / BLOCK_WIDTH) vertices, so
 // the rows its springs reach are mostly its own (L1 hits). 0: a workgroup's worth of a row.
 layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
 // 1: the workgroups take the grid's blocks last first (BLOCK_WIDTH != 0 only). Semi-implicit
 // Euler's packed passes alternate the order from substep to substep
-// (cloth_core::layout::alternates_order), so each substep starts on the blocks the one before
+// (cloth_gpu::geometry::alternates_order), so each substep starts on the blocks the one before
 // wrote last, which the L2 cache still holds.
 layout(constant_id = 110) const uint REVERSED_ORDER = 0u;
 
@@ -148,8 +148,8 @@ void main() {
     uint vi;
     uint vj;
     if (BLOCK_WIDTH != 0u) {
-        // One workgroup per block, the workgroup grid the grid's blocks (cloth_core::layout::
-        // BlockGrid): the workgroup id is the block's column and row, no division needed.
+        // One workgroup per block, the workgroup grid the grid's blocks (cloth_gpu::
+        // geometry::BlockGrid): the workgroup id is the block's column and row, no division needed.
         // (max: not a specialization-constant operation, so vulkano does not fold a quotient by
         // zero when it specializes a pipeline with BLOCK_WIDTH = 0.)
         uint width = max(BLOCK_WIDTH, 1u);
@@ -244,7 +244,7 @@ void main() {
             }
         }
         if (STAGE == 0u) {
-            // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
+            // v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
             v_new = v + force * (dt / mass);
             x_new = x + v_new * dt;
         } else if (STAGE <= 2u) {

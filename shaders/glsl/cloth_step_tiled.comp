@@ -2,8 +2,8 @@
 #extension GL_GOOGLE_include_directive : require
 
 // Several semi-implicit Euler substeps in one dispatch, each workgroup on a tile of the grid in
-// workgroup (shared) memory, one invocation per cell: temporal blocking (cloth_core::tiling says
-// how and why). The tile's constants come from cloth_core::tiling::TileConfig as specialization
+// workgroup (shared) memory, one invocation per cell: temporal blocking (cloth_gpu::geometry says
+// how and why). The tile's constants come from cloth_gpu::geometry::TileConfig as specialization
 // constants. Each vertex's
 // arithmetic is cloth_step.comp's with STAGE = 0, operation by operation (springs, normal and
 // state read from shared memory instead of the state buffers), so the result is the same to the
@@ -180,7 +180,7 @@ void main() {
                         }
                     }
                 }
-                // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
+                // v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
                 v_new = v + force * (dt / mass);
                 x_new = x + v_new * dt;
             } else {

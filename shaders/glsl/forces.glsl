@@ -1,13 +1,13 @@
-// The force model of the brief, one function per force: the GLSL twin of
+// The mass-spring force model, one function per force: the GLSL twin of
 // crates/cloth-core/src/forces.rs and shaders/wgsl/common.wgsl (same names, same order of
 // operations). Units: m, kg, s, N/m, N·s/m.
 
-// Brief: F_g = m g.
+// F_g = m g.
 vec3 gravity_force(float mass, vec3 gravity) {
     return gravity * mass;
 }
 
-// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i, added to `force`
+// Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i, added to `force`
 // (a zero-length spring adds nothing: branched around, measured faster on the H100 than adding 0).
 void add_spring_force(inout vec3 force, vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, float rest_length, float stiffness,
                       float damping) {
@@ -25,12 +25,12 @@ void add_spring_force(inout vec3 force, vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, 
     force += u * (stiffness * (len - rest_length) + damping * extension_rate);
 }
 
-// Linear air drag F = -m γ v (not in the brief).
+// Linear air drag F = -m γ v (an addition to the mass-spring model).
 vec3 air_drag_force(float mass, float rate, vec3 v) {
     return v * (-(mass * rate));
 }
 
-// Brief: F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
+// F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
 // whose centre is at `center` now). Returns false outside.
 bool contact_force(vec3 x, vec3 v, vec3 center, Sphere s, out vec3 normal, out vec3 force) {
     vec3 offset = x - center;
@@ -47,7 +47,7 @@ bool contact_force(vec3 x, vec3 v, vec3 center, Sphere s, out vec3 normal, out v
     return true;
 }
 
-// Brief: R_on = (R_o·1_n)1_n, R_ot = R_o - R_on, F_f = -min(|R_ot|, c_f |R_on|) 1_t,
+// R_on = (R_o·1_n)1_n, R_ot = R_o - R_on, F_f = -min(|R_ot|, c_f |R_on|) 1_t,
 // with m v_t / Δt added to R_ot (see docs/model.md).
 vec3 friction_force(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt, float coefficient) {
     vec3 r_on = normal * dot(other_forces, normal);
@@ -62,7 +62,7 @@ vec3 friction_force(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt
     return tangential * (-(min(magnitude, limit) / magnitude));
 }
 
-// Whether the brief's friction holds the vertex still: |R_ot + m v_t / Δt| <= c_f |R_on|.
+// Whether the model's friction holds the vertex still: |R_ot + m v_t / Δt| <= c_f |R_on|.
 bool friction_holds(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt, float coefficient) {
     vec3 r_on = normal * dot(other_forces, normal);
     vec3 r_ot = other_forces - r_on;
@@ -71,7 +71,7 @@ bool friction_holds(vec3 other_forces, vec3 v, vec3 normal, float mass, float dt
     return sqrt(dot(tangential, tangential)) <= coefficient * sqrt(dot(r_on, r_on));
 }
 
-// Linear wind pressure (not in the brief): F = c A ((w − v)·n) n, n the cloth's unit normal.
+// Linear wind pressure (an addition to the mass-spring model): F = c A ((w − v)·n) n, n the cloth's unit normal.
 vec3 wind_force(vec3 normal, vec3 v, vec3 wind, float coefficient_area) {
     return normal * (coefficient_area * dot(wind - v, normal));
 }

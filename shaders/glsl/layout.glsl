@@ -1,8 +1,8 @@
-// Buffer layouts shared by every kernel: the GLSL view of crates/cloth-core/src/layout.rs
-// (checked by crates/cloth-vulkano/tests/layout.rs), with the two bindings all kernels share
+// Buffer layouts shared by every kernel: the GLSL view of crates/cloth-gpu/src/layout.rs
+// (checked by tests/tests/shader_layouts.rs), with the two bindings all kernels share
 // (0: parameters, 1: spheres). Each kernel declares its other bindings.
 
-// cloth_core::layout::GpuSimParams (160 bytes, std140).
+// cloth_gpu::layout::GpuSimParams (160 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gravity;       // m/s² (xyz)
     vec4 stiffness;     // N/m by spring kind: structural, shear, bend
@@ -22,7 +22,7 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
 } params;
 
-// cloth_core::layout::GpuSphere (64 bytes).
+// cloth_gpu::layout::GpuSphere (64 bytes).
 struct Sphere {
     vec3 center;        // m, at time 0
     float radius;       // m
@@ -36,7 +36,7 @@ struct Sphere {
     float pad2;
 };
 
-// cloth_core::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
+// cloth_gpu::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
 struct Constraint {
     uint a;
     uint b;

@@ -35,7 +35,7 @@ layout(set = 0, binding = 7, std430) buffer MaxPenetration { uint max_penetratio
 layout(set = 0, binding = 8, std430) buffer Lambdas { float lambdas[]; };
 // Each vertex's summed sphere correction in this substep, m.
 layout(set = 0, binding = 9, std430) buffer NormalCorrections { float normal_corrections[]; };
-// cloth_core::layout::GpuColorRange (16 bytes): the colour pass 1 projects, selected by a
+// cloth_gpu::layout::GpuColorRange (16 bytes): the colour pass 1 projects, selected by a
 // dynamic offset.
 layout(set = 0, binding = 10, std140) uniform ColorRange {
     uint first;

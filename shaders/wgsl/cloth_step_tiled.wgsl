@@ -1,7 +1,7 @@
 // Several semi-implicit Euler substeps in one dispatch, each workgroup on a tile of the grid in
-// workgroup memory, one invocation per cell (temporal blocking; cloth_core::tiling says how and
+// workgroup memory, one invocation per cell (temporal blocking; cloth_gpu::geometry says how and
 // why). Prepended with common.wgsl and, by the backend, the tile's constants from
-// cloth_core::tiling::TileConfig:
+// cloth_gpu::geometry::TileConfig:
 //   const TILE_WIDTH: u32;          cells along i, halo included
 //   const TILE_HEIGHT: u32;         cells along j
 //   const FUSED_SUBSTEPS: u32;      substeps per dispatch
@@ -182,7 +182,7 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
                         }
                     }
                 }
-                // Brief: v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
+                // v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
                 v_new = v + force * (dt / mass);
                 x_new = x + v_new * dt;
             } else {

@@ -24,12 +24,12 @@ override WORKGROUP_SIZE: u32 = 256u;
 // Any spring kind at all (one constant, so the branch on it is a constant too).
 override ANY_SPRINGS: bool = EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND;
 
-// Brief: F_g = m g.
+// F_g = m g.
 fn gravity_force(mass: f32, gravity: vec3<f32>) -> vec3<f32> {
     return gravity * mass;
 }
 
-// Brief: Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i, added to `force`
+// Hooke F_s = -k Δl and damping F_d = -c_d v_s, seen from vertex i, added to `force`
 // (a zero-length spring adds nothing: branched around, measured faster on the H100 than adding 0).
 fn add_spring_force(force: ptr<function, vec3<f32>>, x_i: vec3<f32>, x_j: vec3<f32>, v_i: vec3<f32>,
                     v_j: vec3<f32>, rest_length: f32, stiffness: f32, damping: f32) {
@@ -47,7 +47,7 @@ fn add_spring_force(force: ptr<function, vec3<f32>>, x_i: vec3<f32>, x_j: vec3<f
     *force += u * (stiffness * (len - rest_length) + damping * extension_rate);
 }
 
-// Linear air drag F = -m γ v (not in the brief).
+// Linear air drag F = -m γ v (an addition to the mass-spring model).
 fn air_drag_force(mass: f32, rate: f32, v: vec3<f32>) -> vec3<f32> {
     return v * (-(mass * rate));
 }
@@ -58,7 +58,7 @@ struct Contact {
     force: vec3<f32>,
 }
 
-// Brief: F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
+// F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
 // whose centre is at `center` now).
 fn contact_force(x: vec3<f32>, v: vec3<f32>, center: vec3<f32>, s: Sphere) -> Contact {
     var c: Contact;
@@ -79,7 +79,7 @@ fn contact_force(x: vec3<f32>, v: vec3<f32>, center: vec3<f32>, s: Sphere) -> Co
     return c;
 }
 
-// Brief: R_on = (R_o·1_n)1_n, R_ot = R_o - R_on, F_f = -min(|R_ot|, c_f |R_on|) 1_t,
+// R_on = (R_o·1_n)1_n, R_ot = R_o - R_on, F_f = -min(|R_ot|, c_f |R_on|) 1_t,
 // with m v_t / Δt added to R_ot (see docs/model.md).
 fn friction_force(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
                   mass: f32, dt: f32, coefficient: f32) -> vec3<f32> {
@@ -95,7 +95,7 @@ fn friction_force(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
     return tangential * (-(min(magnitude, limit) / magnitude));
 }
 
-// Whether the brief's friction holds the vertex still: |R_ot + m v_t / Δt| <= c_f |R_on|.
+// Whether the model's friction holds the vertex still: |R_ot + m v_t / Δt| <= c_f |R_on|.
 fn friction_holds(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
                   mass: f32, dt: f32, coefficient: f32) -> bool {
     let r_on = normal * dot(other_forces, normal);
@@ -105,7 +105,7 @@ fn friction_holds(other_forces: vec3<f32>, v: vec3<f32>, normal: vec3<f32>,
     return sqrt(dot(tangential, tangential)) <= coefficient * sqrt(dot(r_on, r_on));
 }
 
-// Linear wind pressure (not in the brief): F = c A ((w − v)·n) n, n the cloth's unit normal.
+// Linear wind pressure (an addition to the mass-spring model): F = c A ((w − v)·n) n, n the cloth's unit normal.
 fn wind_force(normal: vec3<f32>, v: vec3<f32>, wind: vec3<f32>, coefficient_area: f32) -> vec3<f32> {
     return normal * (coefficient_area * dot(wind - v, normal));
 }

@@ -30,10 +30,9 @@ const F64_TOLERANCE_M: f32 = 2e-5;
 // evaluating the same operations in f32, fused or not, cannot be expected closer to the f32
 // reference than the f32 reference is to the exact result. That error grows with the square of
 // the time (a velocity error integrates into positions): 2.6e-6 m after one frame of the landing
-// case, 4.1e-4 m after 11. (On the H100: 1.2e-5 m after 110 substeps of the landing in an earlier
-// build, 6.8e-5 m once the sphere projection became relative to a moving sphere (other
-// multiply-adds to fuse), 9e-6 m after 300 substeps hanging; bit-exact on lavapipe but for 4e-6 m
-// on the hanging cloth.)
+// case, 4.1e-4 m after 11. (On an NVIDIA GPU, which fuses multiply-adds: 6.8e-5 m after 110
+// substeps of the landing, 9e-6 m after 300 substeps hanging; bit-exact on lavapipe but for
+// 4e-6 m on the hanging cloth.)
 const XPBD_ULP_PER_SUBSTEP_M: f32 = 2.4e-7;
 // Long horizon (seconds, with contact): contact switches on and off at slightly different
 // substeps, so trajectories can separate; we compare physical outcomes. The resting height: 5 mm,

@@ -247,7 +247,7 @@ fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> 
         })
         .collect();
     if integrator == Integrator::SemiImplicitEuler {
-        // The tiled kernel that fuses Euler substeps (cloth_core::tiling), at the default tile.
+        // The tiled kernel that fuses Euler substeps (cloth_gpu::geometry), at the default tile.
         let (source, entry) = match language {
             Language::Wgsl => (cloth_wgpu::tiled_shader_source(&cloth_gpu::geometry::DEFAULT_TILES[0]), "substeps"),
             Language::Glsl => (glsl_source("cloth_step_tiled.comp"), "main"),
@@ -261,7 +261,7 @@ fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> 
 fn absent_effects_leave_no_reachable_work_in_the_pipelines() {
     let every = EffectSet::from_iter(Effect::ALL);
     let scenes: Vec<(&str, EffectSet)> = vec![
-        ("the brief's drape", Scene::default().effects),
+        ("the default drape", Scene::default().effects),
         ("springs only", [Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings].into_iter().collect()),
         ("gravity only", EffectSet::empty().with(Effect::Gravity)),
         ("everything but the wind", every.without(Effect::Wind)),

@@ -304,7 +304,7 @@ fn fast_moving_sphere(backend: &Backend) {
 }
 
 /// Substeps of the soak on a backend: a million on the CPU backends; on the GPU backends a
-/// million too when `CLOTH_SOAK_SUBSTEPS` says so (the H100 run does), else 1e5 for the
+/// million too when `CLOTH_SOAK_SUBSTEPS` says so (`scripts/gpu-check.sh stability` does), else 1e5 for the
 /// force-based integrators and 1e4 for XPBD, since lavapipe spends about 50 µs per dispatch and
 /// an XPBD substep of this cloth is 112 dispatches.
 fn soak_substeps(backend: &Backend, integrator: Integrator) -> u64 {
@@ -378,7 +378,7 @@ fn live_stiffness_change_of_100_times(backend: &Backend) {
     }
 }
 
-/// Regularised friction lets a resting cloth creep down a slope forever; the brief's friction,
+/// Regularised friction lets a resting cloth creep down a slope forever; the model's friction,
 /// with its stopping term (and XPBD's in position form), holds it. After 10 s on a high-friction
 /// sphere the cloth is still on it, and the patch of vertices in contact (within 1% of the radius
 /// of its surface) drifted less than `CREEP_SPEED_M_S` on average over the last four seconds

@@ -3,9 +3,12 @@
 //! * `cloth run [SCENE]`: simulate and summarise (text or `--json`), optionally render a PNG;
 //! * `cloth check SCENE`: validate, and print spring counts, memory and the stable substep;
 //! * `cloth backends`: the backends compiled in and the adapters each can use;
-//! * `cloth bench`: ms per frame and vertex-substeps per second of each backend.
+//! * `cloth bench`: ms per frame and vertex-substeps per second of each backend;
+//! * `cloth study accuracy`: what accuracy costs in time;
+//! * `cloth figure`: the pictures of docs/model.md.
 
 mod bench;
+mod figure;
 mod render;
 mod report;
 mod study;
@@ -50,6 +53,14 @@ enum Command {
     /// Studies (`cloth study accuracy`).
     #[command(subcommand)]
     Study(StudyCommand),
+    /// Draw a picture of the model (docs/model.md's figures) as SVG.
+    Figure {
+        /// Which picture: the 12-spring stencil, or the friction decomposition.
+        #[arg(value_enum)]
+        figure: figure::Figure,
+        /// The SVG file to write.
+        out: PathBuf,
+    },
 }
 
 #[derive(Subcommand)]
@@ -122,6 +133,11 @@ fn main() -> Result<()> {
         Command::Check { scene, grid, substeps } => check(&scene, grid, substeps),
         Command::Bench(args) => bench::run(args),
         Command::Study(StudyCommand::Accuracy(args)) => study::accuracy(args),
+        Command::Figure { figure, out } => {
+            figure::write(figure, &out)?;
+            println!("wrote {}", out.display());
+            Ok(())
+        }
         Command::Backends => {
             for b in backends::all() {
                 println!("{:<8} {}", b.name, b.description);

@@ -29,7 +29,7 @@ pub struct TuningArgs {
     tile: Option<TileConfig>,
     /// Whether semi-implicit Euler's substeps inside a submission pass each other the packed
     /// 24-byte state (on) or two vec4s (off).
-    #[arg(long, default_value = "on", value_parser = on_off)]
+    #[arg(long, default_value = "on", value_parser = on_off, action = clap::ArgAction::Set)]
     packed_state: bool,
     /// The order the packed passes take the grid's blocks in: auto (alternating where a substep
     /// moves 25 to 100 MB), forward, alternating.

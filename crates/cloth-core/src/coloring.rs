@@ -89,7 +89,7 @@ mod tests {
     fn no_two_springs_of_a_colour_share_a_vertex() {
         for (nx, ny) in [(2, 2), (3, 5), (4, 4), (7, 6), (16, 9), (33, 17)] {
             let grid = Grid::new(&ClothSpec { resolution: [nx, ny], ..Default::default() });
-            let springs = crate::springs::generate(&grid, EffectSet::brief());
+            let springs = crate::springs::generate(&grid, EffectSet::mass_spring());
             let colors = SpringColors::new(&springs, nx);
             let mut all: Vec<u32> = colors.order.clone();
             all.sort_unstable();

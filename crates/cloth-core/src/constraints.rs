@@ -54,7 +54,7 @@ pub fn project_spring<R: Real>(
 
 /// Projects a vertex out of a sphere (the non-penetration constraint `|x − c| ≥ r`, with zero
 /// compliance): moves `x` to the surface along the outward normal and returns the correction's
-/// length, m (0 when outside). XPBD's counterpart of the brief's penalty force `F_c = k_c d`.
+/// length, m (0 when outside). XPBD's counterpart of the penalty force `F_c = k_c d`.
 pub fn project_sphere<R: Real>(x: &mut Vec3<R>, center: Vec3<R>, radius: R) -> R {
     let offset = *x - center;
     let distance = offset.length();
@@ -98,7 +98,7 @@ pub fn project_sphere_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, center: 
     project_sphere(x, center, radius)
 }
 
-/// Coulomb friction on a contact, in position form (the brief's
+/// Coulomb friction on a contact, in position form (the model's
 /// `F_f = −min(|R_ot|, c_f |R_on|) 1_t` with displacements for forces, as XPBD does it): the
 /// tangential part of the substep's displacement `x − x_start` is undone when it is within `c_f`
 /// times the normal correction the spheres made (static friction: the vertex sticks), and

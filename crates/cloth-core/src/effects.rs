@@ -24,7 +24,7 @@ pub enum Effect {
     SphereContact,
     /// Friction between the spheres and the cloth (needs `SphereContact`).
     Friction,
-    /// Linear air drag `F = -m γ v` (not in the brief; helps a drape settle).
+    /// Linear air drag `F = -m γ v` (an addition to the mass-spring model; helps a drape settle).
     AirDrag,
     /// Wind: air moving at `scene.wind` (uniform or gusting) pushes on the cloth along its normal.
     Wind,
@@ -87,9 +87,9 @@ impl EffectSet {
         Self { bits: 0 }
     }
 
-    /// The brief's model: gravity, the three spring kinds with damping, sphere
+    /// The mass-spring model's effects: gravity, the three spring kinds with damping, sphere
     /// contact and friction (no air drag).
-    pub fn brief() -> Self {
+    pub fn mass_spring() -> Self {
         Self::from_iter([
             Effect::Gravity,
             Effect::StructuralSprings,
@@ -148,7 +148,7 @@ impl EffectSet {
 
 impl Default for EffectSet {
     fn default() -> Self {
-        Self::brief()
+        Self::mass_spring()
     }
 }
 
@@ -195,7 +195,7 @@ mod tests {
 
     #[test]
     fn shader_constants_name_every_effect_once() {
-        let consts = EffectSet::brief().shader_constants();
+        let consts = EffectSet::mass_spring().shader_constants();
         assert_eq!(consts.len(), Effect::ALL.len());
         assert!(consts.contains(&("EFFECT_FRICTION", true)));
         assert!(consts.contains(&("EFFECT_AIR_DRAG", false)));

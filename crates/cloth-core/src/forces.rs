@@ -1,4 +1,4 @@
-//! The force model of the brief, one function per force.
+//! The mass-spring force model, one function per force.
 //!
 //! Every function is generic over the precision `R` so the CPU reference runs in `f32` and
 //! `f64`. The GPU shaders (`shaders/wgsl/`, `shaders/glsl/`) implement the same functions
@@ -15,7 +15,7 @@ pub fn gravity_force<R: Real>(mass: R, gravity: Vec3<R>) -> Vec3<R> {
 /// damping, N.
 ///
 /// With `L = |x_j − x_i|` and `u = (x_j − x_i) / L`:
-/// * Hooke (`F_s = −k Δl` of the brief, seen from vertex `i`): `k (L − L0) u`,
+/// * Hooke (`F_s = −k Δl` seen from vertex `i`): `k (L − L0) u`,
 ///   pulling `i` towards `j` when the spring is stretched;
 /// * damping (`F_d = −c_d v_s`): `c_d ((v_j − v_i) · u) u`, resisting the extension rate
 ///   `v_s = dL/dt = (v_j − v_i) · u`.
@@ -53,7 +53,7 @@ pub fn add_spring_force<R: Real>(
     *force += u * (stiffness * (length - rest_length) + damping * extension_rate);
 }
 
-/// Linear air drag, `F = −m γ v` (N), with `γ` in 1/s. Not in the brief; the `AirDrag` effect.
+/// Linear air drag, `F = −m γ v` (N), with `γ` in 1/s. An addition to the mass-spring model: the `AirDrag` effect.
 pub fn air_drag_force<R: Real>(mass: R, rate: R, v: Vec3<R>) -> Vec3<R> {
     v * (-(mass * rate))
 }
@@ -74,7 +74,7 @@ pub fn grid_normal<R: Real>(x: &[Vec3<R>], index: usize, nx: usize, ny: usize) -
 
 /// Wind on a vertex, N: `F = c A ((w − v) · n) n`, the air's velocity relative to the vertex
 /// projected on the cloth's unit normal `n`, times `c A` (N·s/m: the wind coefficient, N·s/m³,
-/// times the cloth's area per vertex). Not in the brief; the `Wind` effect. A cloth edge-on to
+/// times the cloth's area per vertex). An addition to the mass-spring model: the `Wind` effect. A cloth edge-on to
 /// the wind feels none; one facing it is pushed at the relative normal speed.
 pub fn wind_force<R: Real>(normal: Vec3<R>, v: Vec3<R>, wind: Vec3<R>, coefficient_area: R) -> Vec3<R> {
     normal * (coefficient_area * (wind - v).dot(normal))
@@ -116,7 +116,7 @@ pub fn contact_force<R: Real>(
     Some(Contact { normal, depth, force })
 }
 
-/// Friction from the resultant of the other forces, N (the brief's four equations):
+/// Friction from the resultant of the other forces, N (the model's four equations):
 ///
 /// ```text
 /// R_on = (R_o · 1_n) 1_n          normal part of the other forces
@@ -130,7 +130,7 @@ pub fn contact_force<R: Real>(
 ///
 /// One extension, documented in `docs/model.md`: a vertex that already slides also has the
 /// tangential force that would stop it within this substep, `m v_t / Δt`, added to `R_ot`.
-/// At rest (`v_t = 0`) this is exactly the brief's formula; while sliding, friction opposes
+/// At rest (`v_t = 0`) this is exactly the model's formula; while sliding, friction opposes
 /// the sliding with at most `c_f |R_on|` (Coulomb), and a vertex whose friction budget
 /// suffices is stopped exactly (static friction), instead of gliding on forever.
 pub fn friction_force<R: Real>(
@@ -153,7 +153,7 @@ pub fn friction_force<R: Real>(
     tangential * (-(magnitude.min(limit) / magnitude))
 }
 
-/// Whether the brief's friction holds the vertex still (static friction): the tangential force it
+/// Whether the model's friction holds the vertex still (static friction): the tangential force it
 /// has to cancel, `R_ot + m v_t / Δt` (see [`friction_force`]), is within `c_f |R_on|`.
 ///
 /// RK4 uses it: friction switches between sticking and sliding, which a smooth four-stage method
@@ -183,7 +183,7 @@ pub fn stick<R: Real>(x: Vec3<R>, v: Vec3<R>, x_start: Vec3<R>, normal: Vec3<R>)
     (x - d_t, normal * v.dot(normal))
 }
 
-/// Semi-implicit (symplectic) Euler, the brief's integrator:
+/// Semi-implicit (symplectic) Euler, the model's integrator:
 /// `v_c = v_p + Δt R / m`, then `x_c = x_p + Δt v_c`. Returns `(x_c, v_c)`.
 pub fn integrate<R: Real>(x: Vec3<R>, v: Vec3<R>, resultant: Vec3<R>, mass: R, dt: R) -> (Vec3<R>, Vec3<R>) {
     let v_new = v + resultant * (dt / mass);

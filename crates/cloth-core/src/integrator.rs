@@ -1,6 +1,6 @@
 //! Time integrators: how a substep turns forces into new velocities and positions.
 //!
-//! * [`Integrator::SemiImplicitEuler`], the brief's: `v += Δt F(x, v)/m; x += Δt v`. First order,
+//! * [`Integrator::SemiImplicitEuler`], the model's: `v += Δt F(x, v)/m; x += Δt v`. First order,
 //!   symplectic, stable for `Δt < 2/ω` (less with damping).
 //! * [`Integrator::VelocityVerlet`]: kick–drift–kick, `v½ = v + ½Δt a(x, v)`, `x' = x + Δt v½`,
 //!   `v' = v½ + ½Δt a(x', v½)`. Second order for conservative forces, symplectic, same stability
@@ -19,7 +19,7 @@
 //!   many iterations), the spheres as non-penetration constraints, and velocities follow as
 //!   `(x' − x)/Δt`. Stable at any step; first order; springs' damping is not modelled (the method
 //!   dissipates by itself). The sphere projection is swept along each vertex's path in the
-//!   substep, so a long step cannot tunnel through a sphere. Friction keeps the brief's Coulomb
+//!   substep, so a long step cannot tunnel through a sphere. Friction keeps the model's Coulomb
 //!   meaning on the contact's displacement: the tangential part of the substep's displacement is
 //!   undone up to `c_f` times the normal correction (the vertex sticks), and shortened by that
 //!   beyond. `Substeps::Auto` keeps `ω Δt` below [`crate::stability::XPBD_AUTO_OMEGA_DT`], where
@@ -27,7 +27,7 @@
 //!   ([`crate::coloring`]): on the GPU one dispatch per colour, on the CPU the same order, so both
 //!   compute the same thing.
 //!
-//! Contact and friction keep the brief's meaning under every integrator: they are forces of the
+//! Contact and friction keep the model's meaning under every integrator: they are forces of the
 //! state each stage evaluates. The friction's "stop within this step" term uses the step its
 //! velocity update spans: `Δt` for Euler and RK4, `½Δt` for each half kick of Verlet.
 
@@ -36,7 +36,7 @@ use serde::{Deserialize, Serialize};
 /// Which time integrator a scene uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Integrator {
-    /// The brief's semi-implicit (symplectic) Euler. Default.
+    /// The model's semi-implicit (symplectic) Euler. Default.
     #[default]
     SemiImplicitEuler,
     /// Velocity Verlet (kick–drift–kick).

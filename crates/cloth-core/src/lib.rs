@@ -12,7 +12,7 @@
 //! * [`motion`]: moving pins and spheres, and the gusting wind;
 //! * [`constraints`]: XPBD's constraint projections, one function per constraint;
 //! * [`reference`](mod@reference): the CPU reference stepper, the test oracle;
-//! * [`integrator`]: semi-implicit Euler (the brief's), velocity Verlet, RK4;
+//! * [`integrator`]: semi-implicit Euler (the model's), velocity Verlet, RK4;
 //! * [`stability`]: the largest stable substep;
 //! * [`simulator`]: the [`Simulator`] trait every backend implements;
 //! * [`energy`]: kinetic, elastic, gravitational and contact energy.

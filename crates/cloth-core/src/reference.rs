@@ -1,4 +1,4 @@
-//! The CPU reference stepper: the brief's model, readable, deterministic, in `f32` or `f64`.
+//! The CPU reference stepper: the mass-spring model, readable, deterministic, in `f32` or `f64`.
 //!
 //! A substep computes every vertex's new state from the previous state only (a Jacobi sweep),
 //! exactly as a GPU thread per vertex does with ping-pong buffers. The result is therefore
@@ -489,7 +489,7 @@ impl<R: Real> ReferenceSimulator<R> {
         self.clock = t1;
     }
 
-    /// The brief's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).
+    /// The model's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).
     fn euler_substep(&mut self) {
         let (t, t1) = (self.clock, self.clock + self.params.dt);
         let (pin_step, pin_velocity) = self.params.pin_step(t, t1, self.moving_pins());

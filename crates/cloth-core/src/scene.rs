@@ -1,7 +1,7 @@
 //! Scenes: everything a simulation needs, loaded from RON files.
 //!
 //! Every field has a unit and a default; a field left out of a RON file takes the
-//! default shown here. `Scene::default()` is the brief's scene: a 32 × 32 cloth
+//! default shown here. `Scene::default()` is the default scene: a 32 × 32 cloth
 //! falling onto a sphere and draping over it.
 //!
 //! ```ron
@@ -41,10 +41,10 @@ pub struct Scene {
     pub wind: WindSpec,
     /// Time stepping: frame length, substeps per frame, run length.
     pub time: TimeSpec,
-    /// Time integrator. Default `SemiImplicitEuler` (the brief's); `VelocityVerlet`,
+    /// Time integrator. Default `SemiImplicitEuler` (the model's); `VelocityVerlet`,
     /// `RungeKutta4` and `Xpbd` run on every backend too (see [`crate::integrator`]).
     pub integrator: crate::integrator::Integrator,
-    /// The effects this scene simulates. Default: the brief's (everything but air drag).
+    /// The effects this scene simulates. Default: the mass-spring model's (everything but air drag and the driven effects).
     pub effects: EffectSet,
 }
 
@@ -52,7 +52,7 @@ impl Default for Scene {
     fn default() -> Self {
         Self {
             name: "drape".into(),
-            description: "A cloth falls onto a sphere and drapes over it (the brief's scene).".into(),
+            description: "A cloth falls onto a sphere and drapes over it (the default scene).".into(),
             cloth: ClothSpec::default(),
             springs: SpringSpecs::default(),
             spheres: vec![SphereSpec::default()],
@@ -71,7 +71,7 @@ impl Default for Scene {
 #[serde(default, deny_unknown_fields)]
 pub struct ClothSpec {
     /// Vertices along the two sides, `(nx, ny)`; each at least 2. Default `(32, 32)`.
-    /// This is the brief's "number of vertices of the fabric": edit it here or with
+    /// This is the cloth's number of vertices: edit it here or with
     /// `cloth run --grid NXxNY`.
     pub resolution: [u32; 2],
     /// Physical size of the rectangle along its two sides, m. Default `(2.0, 2.0)`.

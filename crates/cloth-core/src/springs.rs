@@ -62,7 +62,7 @@ impl SpringKind {
 
     /// Grid offsets `(di, dj)` of the springs of this kind that start at a vertex
     /// (each spring is listed once, from its lower-index end).
-    fn stencil(self) -> &'static [(i64, i64)] {
+    pub fn stencil(self) -> &'static [(i64, i64)] {
         match self {
             SpringKind::Structural => &[(1, 0), (0, 1)],
             SpringKind::Shear => &[(1, 1), (-1, 1)],
@@ -154,7 +154,7 @@ mod tests {
     #[test]
     fn counts_match_the_closed_forms() {
         for (nx, ny) in [(2, 2), (3, 3), (2, 5), (7, 13), (16, 9), (33, 31)] {
-            let springs = generate(&grid(nx, ny), EffectSet::brief());
+            let springs = generate(&grid(nx, ny), EffectSet::mass_spring());
             let counts = count_by_kind(&springs);
             let (x, y) = (nx as usize, ny as usize);
             assert_eq!(counts[0], x * (y - 1) + y * (x - 1), "structural {nx}x{ny}");
@@ -169,7 +169,7 @@ mod tests {
     #[test]
     fn rest_lengths_are_the_initial_distances() {
         // Cell 0.1 m along u, 0.2 m along v.
-        let springs = generate(&grid(7, 13), EffectSet::brief());
+        let springs = generate(&grid(7, 13), EffectSet::mass_spring());
         let diag = (0.1f64 * 0.1 + 0.2 * 0.2).sqrt();
         for s in &springs {
             let (du, dv) = ((s.a % 7) as i64 - (s.b % 7) as i64, (s.a / 7) as i64 - (s.b / 7) as i64);
@@ -185,7 +185,7 @@ mod tests {
 
     #[test]
     fn an_absent_kind_generates_no_springs() {
-        let effects = EffectSet::brief().without(crate::effects::Effect::BendSprings);
+        let effects = EffectSet::mass_spring().without(crate::effects::Effect::BendSprings);
         let counts = count_by_kind(&generate(&grid(5, 5), effects));
         assert_eq!(counts[2], 0);
         assert!(counts[0] > 0 && counts[1] > 0);

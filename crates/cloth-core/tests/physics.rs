@@ -208,7 +208,7 @@ fn live_parameter_updates_apply_and_structural_changes_are_refused() {
     let mut sim = CpuSimulator::new(&scene).unwrap();
     let mut changed = scene.clone();
     changed.gravity = [0.0, 0.0, 0.0];
-    changed.effects = EffectSet::brief();
+    changed.effects = EffectSet::mass_spring();
     sim.update_parameters(&changed).unwrap();
     sim.advance(5).unwrap();
     assert_eq!(sim.read_state().unwrap().centroid()[1] as f32, 1.8f32, "no gravity: the flat cloth stays");

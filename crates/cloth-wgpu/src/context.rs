@@ -91,7 +91,7 @@ pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Li
         max_compute_workgroups_per_dimension: offered.max_compute_workgroups_per_dimension,
         max_compute_invocations_per_workgroup: offered.max_compute_invocations_per_workgroup,
         max_compute_workgroup_size_x: offered.max_compute_workgroup_size_x,
-        // The tiled Euler kernel keeps its tile in workgroup memory (cloth_core::tiling).
+        // The tiled Euler kernel keeps its tile in workgroup memory (cloth_gpu::geometry).
         max_compute_workgroup_storage_size: offered.max_compute_workgroup_storage_size,
         ..wgpu::Limits::default()
     };

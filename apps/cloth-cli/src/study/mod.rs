@@ -9,7 +9,7 @@
 
 mod bisection;
 mod measure;
-mod plot;
+pub(crate) mod plot;
 mod report;
 
 use std::path::{Path, PathBuf};

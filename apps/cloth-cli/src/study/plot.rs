@@ -79,7 +79,7 @@ fn integrator_color(integrator: Integrator) -> RGBColor {
 
 /// The plot's text uses a font compiled in (egui's default sans-serif, Ubuntu Light), so the PNG
 /// needs no system fonts.
-fn register_font() -> Result<()> {
+pub(crate) fn register_font() -> Result<()> {
     static REGISTERED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         plotters::style::register_font("sans-serif", FontStyle::Normal, epaint_default_fonts::UBUNTU_LIGHT).is_ok()

@@ -309,7 +309,7 @@ pub fn markdown(study: &Study, files: &Files) -> String {
     let _ = writeln!(md, "\n## How to read this\n");
     let _ = writeln!(
         md,
-        "* **Semi-implicit Euler** (the brief's) costs one force evaluation per substep and is first \
+        "* **Semi-implicit Euler** (the model's) costs one force evaluation per substep and is first \
          order: halving the step halves the error. **Velocity Verlet** costs two and is second order; \
          **RK4** costs four and is fourth order, but dissipates energy slowly and is not symplectic.\n\
          * **XPBD** projects each spring as a constraint with compliance `1/k` ({iterations} \
