@@ -91,7 +91,7 @@ fn stencil(area: &Area) -> Result<(), String> {
 /// decomposition into normal and tangential parts and the friction `friction_force` returns, at
 /// rest (v = 0), for c_f = 0.5.
 fn friction(area: &Area) -> Result<(), String> {
-    let (origin, scale) = ((300, 300), 50.0);
+    let (origin, scale) = ((300, 200), 42.0);
     let to_px = |v: Vec3<f64>| (origin.0 + (v.x * scale) as i32, origin.1 - (v.y * scale) as i32);
     let (normal, r_o, c_f) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(3.0, -4.0, 0.0), 0.5);
     let r_on = normal * r_o.dot(normal);

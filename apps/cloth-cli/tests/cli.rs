@@ -112,10 +112,8 @@ fn run_on_gpu(backend: &str) {
     assert_eq!(v["host_waits_per_frame"], 0.0);
     // The drape (32², semi-implicit Euler) runs the tiled kernel on a GPU, two substeps per
     // dispatch, and one substep per dispatch on a CPU implementation (lavapipe), where it is slower.
-    if std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_none() && std::env::var_os("CLOTH_TILE").is_none() {
-        let expected = if v["adapter"].as_str().unwrap().contains("Cpu") { 1 } else { 2 };
-        assert_eq!(v["substeps_per_dispatch"], expected, "{v}");
-    }
+    let expected = if v["adapter"].as_str().unwrap().contains("Cpu") { 1 } else { 2 };
+    assert_eq!(v["substeps_per_dispatch"], expected, "{v}");
 }
 
 #[test]
@@ -233,20 +231,16 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
         let gpu = !r[0].starts_with("cpu");
         assert_eq!(r[column("gpu_ms_per_frame")].is_empty(), !gpu, "{r:?}");
         assert_eq!(r[column("ceiling_fraction")].is_empty(), !gpu, "{r:?}");
-        let tuned = std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_some() || std::env::var_os("CLOTH_TILE").is_some();
-        if !tuned {
-            // Tiles on a GPU; not on the CPU reference or a CPU implementation of Vulkan.
-            let fused = if gpu && !r[column("adapter")].contains("Cpu") { "2" } else { "1" };
-            assert_eq!(r[column("fused_substeps")], fused, "{r:?}");
-            // Untiled, the GPU backends run Euler on its packed state (24 bytes a vertex).
-            let packed = std::env::var("CLOTH_PACKED_STATE").map_or(true, |v| v.trim() != "0");
-            let state = match (gpu, fused, packed) {
-                (false, _, _) => "",
-                (true, "1", true) => "24",
-                _ => "32",
-            };
-            assert_eq!(r[column("state_bytes_per_vertex")], state, "{r:?}");
-        }
+        // Tiles on a GPU; not on the CPU reference or a CPU implementation of Vulkan.
+        let fused = if gpu && !r[column("adapter")].contains("Cpu") { "2" } else { "1" };
+        assert_eq!(r[column("fused_substeps")], fused, "{r:?}");
+        // Untiled, the GPU backends run Euler on its packed state (24 bytes a vertex).
+        let state = match (gpu, fused) {
+            (false, _) => "",
+            (true, "1") => "24",
+            _ => "32",
+        };
+        assert_eq!(r[column("state_bytes_per_vertex")], state, "{r:?}");
         if gpu {
             assert_eq!(r[column("submissions_per_frame")], "1.000", "{r:?}");
             let fraction: f64 = r[column("ceiling_fraction")].parse().unwrap();
@@ -260,30 +254,20 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
     let _ = std::fs::remove_file(csv);
 }
 
-/// `cloth bench --tiling on|off` chooses the tiled kernel for semi-implicit Euler on every GPU
-/// backend, whatever the device (lavapipe does not tile by default): the CSV's fused substeps.
+/// `cloth bench`'s GPU tuning flags reach the backends: `--tiling on|off` chooses the tiled kernel
+/// for semi-implicit Euler on every GPU backend, whatever the device (lavapipe does not tile by
+/// default), and `--packed-state off` keeps the two `vec4`s: the CSV's fused substeps and state.
 #[test]
-fn bench_tiling_flag_turns_the_tiled_kernel_on_and_off() {
-    if std::env::var_os("CLOTH_FUSED_SUBSTEPS").is_some() || std::env::var_os("CLOTH_TILE").is_some() {
-        return;
-    }
-    for (tiling, fused) in [("on", "2"), ("off", "1")] {
-        let csv = std::env::temp_dir().join(format!("cloth-bench-tiling-{tiling}-{}.csv", std::process::id()));
-        let out = cloth(&[
-            "bench",
-            "--backends",
-            "wgpu,vulkano",
-            "--grids",
-            "40",
-            "--substeps",
-            "4",
-            "--frames",
-            "1",
-            "--tiling",
-            tiling,
-            "--csv",
-            csv.to_str().unwrap(),
-        ]);
+fn bench_tuning_flags_choose_the_kernels() {
+    for (flags, fused, state) in
+        [(["--tiling", "on"], "2", "32"), (["--tiling", "off"], "1", "24"), (["--packed-state", "off"], "1", "32")]
+    {
+        let csv =
+            std::env::temp_dir().join(format!("cloth-bench-{}-{}-{}.csv", flags[0], flags[1], std::process::id()));
+        let mut args = vec!["bench", "--backends", "wgpu,vulkano", "--grids", "40", "--substeps", "4", "--frames", "1"];
+        args.extend(flags);
+        args.extend(["--csv", csv.to_str().unwrap()]);
+        let out = cloth(&args);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{stderr}");
         let stdout = String::from_utf8_lossy(&out.stdout);
@@ -294,13 +278,29 @@ fn bench_tiling_flag_turns_the_tiled_kernel_on_and_off() {
         let table = std::fs::read_to_string(&csv).unwrap();
         let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
         // Fields after the quoted adapter (the second column, which may hold commas).
-        let at = header.iter().position(|h| *h == "fused_substeps").expect("a fused_substeps column") - 2;
+        let at = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}")) - 2;
         let rows: Vec<&str> = table.lines().skip(1).collect();
         assert_eq!(rows.len(), 2, "{table}");
         for row in rows {
-            let after_adapter = row.split_once("\",").expect("a quoted adapter").1;
-            assert_eq!(after_adapter.split(',').nth(at), Some(fused), "--tiling {tiling}: {row}");
+            let after_adapter: Vec<&str> = row.split_once("\",").expect("a quoted adapter").1.split(',').collect();
+            assert_eq!(after_adapter[at("fused_substeps")], fused, "{flags:?}: {row}");
+            assert_eq!(after_adapter[at("state_bytes_per_vertex")], state, "{flags:?}: {row}");
         }
         let _ = std::fs::remove_file(csv);
     }
+}
+
+/// A GPU tuning value the kernels cannot run is refused with the field's name; a malformed flag
+/// names the flag.
+#[test]
+fn a_wrong_tuning_flag_is_refused_naming_it() {
+    let out = cloth(&["run", "--backend", "wgpu", "--frames", "1", "--workgroup-size", "48"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    if !stderr.contains("unavailable") {
+        assert!(stderr.contains("GpuTuning::workgroup_size = 48"), "{stderr}");
+    }
+    let out = cloth(&["bench", "--tile", "32x16"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("--tile") && stderr.contains("WIDTHxHEIGHTxSUBSTEPS"), "{stderr}");
 }
