@@ -349,6 +349,19 @@ class WarpPeer:
         return self.integrator.positions.numpy()
 
 
+def array_substeps(module, it, dt, substeps, integrate_args):
+    """One frame of the CuPy or PyTorch version without its read-back: `substeps` calls of the
+    module's `eval_springs` and `integrate_particles` (whose arguments, which differ between the
+    two modules, `integrate_args(sub_dt)` gives)."""
+    sub_dt = dt / substeps
+    pairs = it.spring_indices.reshape((it.cloth.num_springs, 2))
+    for _ in range(substeps):
+        module.eval_springs(
+            it.positions, it.velocities, pairs, it.spring_lengths, it.spring_stiffness, it.spring_damping, it.forces
+        )
+        module.integrate_particles(*integrate_args(sub_dt))
+
+
 class CupyPeer:
     """Warp's CuPy version, `CpIntegrator`."""
 
@@ -364,19 +377,7 @@ class CupyPeer:
             self.integrator.simulate(dt, substeps)
             return
         it = self.integrator
-        sub_dt = dt / substeps
-        pairs = it.spring_indices.reshape((it.cloth.num_springs, 2))
-        for _ in range(substeps):
-            self.module.eval_springs(
-                it.positions,
-                it.velocities,
-                pairs,
-                it.spring_lengths,
-                it.spring_stiffness,
-                it.spring_damping,
-                it.forces,
-            )
-            self.module.integrate_particles(it.positions, it.velocities, it.forces, it.inv_mass, sub_dt)
+        array_substeps(self.module, it, dt, substeps, lambda h: (it.positions, it.velocities, it.forces, it.inv_mass, h))
 
     def prepare(self, dt, substeps):
         pass
@@ -404,21 +405,9 @@ class TorchPeer:
             self.integrator.simulate(dt, substeps)
             return
         it = self.integrator
-        sub_dt = dt / substeps
-        pairs = it.spring_indices.reshape((it.cloth.num_springs, 2))
-        for _ in range(substeps):
-            self.module.eval_springs(
-                it.positions,
-                it.velocities,
-                pairs,
-                it.spring_lengths,
-                it.spring_stiffness,
-                it.spring_damping,
-                it.forces,
-            )
-            self.module.integrate_particles(
-                it.positions, it.velocities, it.forces, it.gravity, it.inv_mass, sub_dt
-            )
+        array_substeps(
+            self.module, it, dt, substeps, lambda h: (it.positions, it.velocities, it.forces, it.gravity, it.inv_mass, h)
+        )
 
     def prepare(self, dt, substeps):
         pass
