@@ -264,10 +264,10 @@ impl TileConfig {
         match tuning.tile {
             None => Ok(DEFAULT_TILES.iter().find(|t| t.fits(limits)).copied()),
             Some(tile) if tile.fits(limits) => Ok(Some(tile)),
-            Some(tile) => Err(cloth_core::SimError::InvalidOption {
-                option: "GpuTuning::tile",
-                value: tile.to_string(),
-                expected: format!(
+            Some(tile) => Err(crate::tuning::invalid(
+                "GpuTuning::tile",
+                tile,
+                format!(
                     "a tile the device fits: this one needs {} bytes of workgroup memory and {} invocations, the \
                      device allows {} and {}",
                     tile.workgroup_bytes(),
@@ -275,7 +275,7 @@ impl TileConfig {
                     limits.workgroup_memory,
                     limits.max_invocations
                 ),
-            }),
+            )),
         }
     }
 }

@@ -10,7 +10,7 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{COLOR_RANGE_STRIDE, GpuColorRange, GpuConstraint, GpuSimParams, GpuSphere};
 use crate::schedule::{PackedPasses, Pass, Schedule, TiledPass};
-use crate::tuning::GpuTuning;
+use crate::tuning::{GpuTuning, invalid};
 
 /// Index into [`Plan::buffers`].
 pub type BufferId = usize;
@@ -267,10 +267,6 @@ impl Builder<'_> {
         self.plan.bind_groups.push(BindGroupDesc { kernel, label: format!("cloth {label}"), buffers });
         self.plan.bind_groups.len() - 1
     }
-}
-
-fn invalid(option: &'static str, value: impl ToString, expected: String) -> SimError {
-    SimError::InvalidOption { option, value: value.to_string(), expected }
 }
 
 impl Plan {

@@ -91,7 +91,8 @@ pub enum BlockOrder {
     Alternating,
 }
 
-fn invalid(option: &'static str, value: impl std::fmt::Display, expected: impl Into<String>) -> SimError {
+/// The error for a tuning field `option` holding `value`, which must be `expected`.
+pub(crate) fn invalid(option: &'static str, value: impl std::fmt::Display, expected: impl Into<String>) -> SimError {
     SimError::InvalidOption { option, value: value.to_string(), expected: expected.into() }
 }
 
