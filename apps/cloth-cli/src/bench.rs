@@ -28,8 +28,8 @@ pub struct BenchArgs {
     /// dt = 0.04/n (default 16,64,scaled; with `--effects`, one number, default the scene's own).
     #[arg(long, value_delimiter = ',')]
     substeps: Vec<StepRule>,
-    /// Frames timed per row (after one warm-up frame).
-    #[arg(long, default_value_t = 10)]
+    /// Frames timed per row (after one warm-up frame), at least 1.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     frames: u32,
     /// Also write the rows to this CSV file.
     #[arg(long)]
@@ -59,6 +59,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
             .map(|n| all.iter().find(|b| b.name == n).with_context(|| format!("unknown backend '{n}'")))
             .collect::<Result<_>>()?
     };
+    if let Some(path) = &args.csv {
+        crate::output::check_writable(path)?;
+    }
     if args.effects {
         return effects(&args, &chosen);
     }
@@ -73,30 +76,30 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let measured_by = chosen.iter().find_map(|b| b.copy_bandwidth.map(|measure| (b.name, measure)));
     let bandwidth = match measured_by.map(|(name, measure)| (name, measure(&tuning))) {
         Some((name, Ok(b))) => {
-            println!(
+            out!(
                 "device copy bandwidth: {:.3} TB/s (a vec4 copy kernel through {name}; {} copies of {} MiB, bytes read \
                  + written, on {})",
                 b.bytes_per_s / 1e12,
                 b.copies,
                 b.copy_bytes >> 20,
                 b.adapter
-            );
-            println!(
+            )?;
+            out!(
                 "ceiling at {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes per vertex-substep (read and write one position and \
                  one velocity vec4): {:.2} G vertex-substeps/s (semi-implicit Euler's packed state moves \
                  {PACKED_BYTES_PER_VERTEX_SUBSTEP}: {:.2} G vertex-substeps/s)\n",
                 b.bytes_per_s / MIN_BYTES_PER_VERTEX_SUBSTEP / 1e9,
                 b.bytes_per_s / PACKED_BYTES_PER_VERTEX_SUBSTEP / 1e9
-            );
+            )?;
             Some(b)
         }
         Some((_, Err(e))) => {
-            println!("device copy bandwidth: not measured ({e})\n");
+            out!("device copy bandwidth: not measured ({e})\n")?;
             None
         }
         None => None,
     };
-    println!(
+    out!(
         "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10} {:>10} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
         "backend",
         "grid",
@@ -111,7 +114,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         "ceiling",
         "sub/w",
         "finite"
-    );
+    )?;
     let per_backend = (args.grids.len() * rules.len()) as u64;
     let bar = ProgressBar::new(chosen.len() as u64 * per_backend).with_style(
         ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")
@@ -128,12 +131,12 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 let row = match result {
                     Ok(row) => row,
                     Err(SimError::Unavailable { reason, .. }) => {
-                        bar.suspend(|| println!("{:<8} skipped: {reason}", backend.name));
+                        bar.suspend(|| out!("{:<8} skipped: {reason}", backend.name))?;
                         bar.inc(per_backend.saturating_sub(1));
                         continue 'backends;
                     }
                     Err(e) => {
-                        bar.suspend(|| println!("{:<8} {:>6} {rule:>9} refused: {e}", backend.name, format!("{n}²")));
+                        bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {e}", backend.name, format!("{n}²")))?;
                         continue;
                     }
                 };
@@ -143,7 +146,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
                     _ => "-".to_string(),
                 };
                 bar.suspend(|| {
-                    println!(
+                    out!(
                         "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
                         row.backend,
                         format!("{n}²"),
@@ -159,7 +162,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
                         format!("{:.0}/{:.2}", row.submissions_per_frame, row.host_waits_per_frame),
                         if row.finite { "yes" } else { "NaN" }
                     )
-                });
+                })?;
                 if !adapters.contains(&row.adapter) {
                     adapters.push(row.adapter.clone());
                 }
@@ -168,10 +171,13 @@ pub fn run(args: BenchArgs) -> Result<()> {
         }
     }
     bar.finish_and_clear();
-    for a in &adapters {
-        println!("adapter: {a}");
+    if rows.is_empty() {
+        anyhow::bail!("no row was measured: every backend listed was skipped or refused (see above)");
     }
-    println!(
+    for a in &adapters {
+        out!("adapter: {a}")?;
+    }
+    out!(
         "fused: substeps per dispatch (the tiled Euler kernel fuses several); state: bytes a vertex the substeps hand each \
          other (24: semi-implicit Euler's packed state, 32: two vec4s; on the packed state the substeps take the grid's \
          blocks forward and backward by turns where a substep moves {} to {} MB, --block-order); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
@@ -180,7 +186,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
          waits per frame (the wait that ends the measurement included).",
         cloth_gpu::geometry::ALTERNATE_ORDER_MIN_SUBSTEP_BYTES / 1_000_000,
         cloth_gpu::geometry::ALTERNATE_ORDER_MAX_SUBSTEP_BYTES / 1_000_000
-    );
+    )?;
     if let Some(path) = &args.csv {
         let b = bandwidth.as_ref().map(|b| b.bytes_per_s);
         let mut csv = String::from(
@@ -214,8 +220,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 r.state_bytes.map_or(String::new(), |b| b.to_string())
             );
         }
-        std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {}", path.display());
+        crate::output::write_atomically(path, csv.as_bytes())?;
+        out!("wrote {}", path.display())?;
     }
     Ok(())
 }
@@ -227,6 +233,7 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
         None => Scene::from_ron_str(FLAG_SCENE).context("the built-in flag scene")?,
     };
     let mut csv = String::from("backend,adapter,grid,substeps,row,effects,ms_per_frame,added_ms,timer\n");
+    let mut measured = 0;
     for backend in chosen {
         for &n in &args.grids {
             let mut scene = base.clone();
@@ -256,34 +263,37 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
                     Ok(rows) => rows,
                     Err(SimError::Unavailable { reason, .. }) => {
                         bar.finish_and_clear();
-                        println!("{:<8} skipped: {reason}", backend.name);
+                        out!("{:<8} skipped: {reason}", backend.name)?;
                         break;
                     }
                     Err(e) => {
                         bar.finish_and_clear();
-                        println!("{:<8} {nx}x{ny} refused: {e}", backend.name);
+                        out!("{:<8} {nx}x{ny} refused: {e}", backend.name)?;
                         continue;
                     }
                 };
             bar.finish_and_clear();
+            measured += 1;
             let (adapter, substeps, timer, rows) =
                 (&breakdown.adapter, breakdown.substeps, breakdown.timer(), &breakdown.rows);
-            println!(
+            out!(
                 "\n{} on {adapter}: scene '{}', {nx}x{ny} vertices, {substeps} substeps per frame, {} frames, {timer}",
-                backend.name, scene.name, args.frames
-            );
-            println!("  {:<22} {:>10} {:>10}  share of the whole", "row", "ms/frame", "added ms");
+                backend.name,
+                scene.name,
+                args.frames
+            )?;
+            out!("  {:<22} {:>10} {:>10}  share of the whole", "row", "ms/frame", "added ms")?;
             let whole = rows.last().map_or(1.0, |r| r.ms_per_frame).max(f64::MIN_POSITIVE);
             for r in rows {
                 let share = if r.added.is_some() { r.added_ms / whole } else { r.ms_per_frame / whole };
                 let bar = "#".repeat((share.max(0.0) * 40.0).round() as usize);
-                println!(
+                out!(
                     "  {:<22} {:>10.3} {:>+10.3}  {bar} {:.0}%",
                     r.label(),
                     r.ms_per_frame,
                     r.added_ms,
                     share * 100.0
-                );
+                )?;
                 csv += &format!(
                     "{},\"{}\",{nx}x{ny},{substeps},{},{},{:.6},{:.6},{timer}\n",
                     backend.name,
@@ -296,9 +306,12 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
             }
         }
     }
+    if measured == 0 {
+        anyhow::bail!("no breakdown was measured: every backend listed was skipped or refused (see above)");
+    }
     if let Some(path) = &args.csv {
-        std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {}", path.display());
+        crate::output::write_atomically(path, csv.as_bytes())?;
+        out!("wrote {}", path.display())?;
     }
     Ok(())
 }

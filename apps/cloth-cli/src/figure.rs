@@ -25,14 +25,18 @@ type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
 /// Writes `figure` as SVG to `path`.
 pub fn write(figure: Figure, path: &Path) -> Result<()> {
     crate::study::plot::register_font()?;
-    let root = SVGBackend::new(path, (640, 480)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    match figure {
-        Figure::Stencil => stencil(&root),
-        Figure::Friction => friction(&root),
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, (640, 480)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+        match figure {
+            Figure::Stencil => stencil(&root),
+            Figure::Friction => friction(&root),
+        }
+        .map_err(|e| anyhow!("cannot draw {}: {e}", path.display()))?;
+        root.present().map_err(|e| anyhow!("cannot draw {}: {e}", path.display()))?;
     }
-    .map_err(|e| anyhow!("cannot draw {}: {e}", path.display()))?;
-    root.present().map_err(|e| anyhow!("cannot write {}: {e}", path.display()))
+    crate::output::write_atomically(path, text.as_bytes())
 }
 
 fn text(area: &Area, label: &str, at: (i32, i32), size: u32, color: &RGBColor) -> Result<(), String> {

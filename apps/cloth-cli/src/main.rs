@@ -7,8 +7,19 @@
 //! * `cloth study accuracy`: what accuracy costs in time;
 //! * `cloth figure`: the pictures of docs/model.md.
 
+/// Writes a line to standard output and returns the error instead of panicking on it (a full
+/// disk, a closed pipe): `out!(...)?`.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout(), $($arg)*)
+            .map_err(|e| std::io::Error::new(e.kind(), format!("cannot write to standard output: {e}")))
+    }};
+}
+
 mod bench;
 mod figure;
+mod output;
 mod render;
 mod report;
 mod study;
@@ -78,8 +89,8 @@ struct RunArgs {
     backend: String,
     #[command(flatten)]
     tuning: tuning::TuningArgs,
-    /// Frames to simulate (default: the scene's `time.frames`).
-    #[arg(long)]
+    /// Frames to simulate, at least 1 (default: the scene's `time.frames`).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     frames: Option<u32>,
     /// Grid resolution NXxNY, e.g. 64x48 (vertices along each side).
     #[arg(long, value_parser = parse_grid)]
@@ -127,25 +138,56 @@ fn load_scene(path: Option<&PathBuf>, grid: Option<[u32; 2]>, substeps: Option<S
     Ok(scene)
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().command {
+/// Runs the command; an error ends it with its message and exit code 1, and a closed standard
+/// output (`cloth ... | head`) ends it quietly, as Unix tools end (exit code 141, SIGPIPE's).
+fn main() -> std::process::ExitCode {
+    if let Some(dir) = backends::private_runtime_dir(std::env::var_os("XDG_RUNTIME_DIR").as_deref()) {
+        // SAFETY: at start-up, before any thread is spawned.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", dir) };
+    }
+    match command(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) if e.downcast_ref::<std::io::Error>().is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe) => {
+            std::process::ExitCode::from(141)
+        }
+        Err(e) if e.downcast_ref::<Unstable>().is_some() => {
+            eprintln!("{e}");
+            std::process::ExitCode::from(2)
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// `cloth check` of a valid scene whose substep exceeds the stable bound: exit code 2 (1 is an
+/// invalid scene or another error).
+#[derive(Debug, thiserror::Error)]
+#[error("unstable: the substep is {margin:.2} times the largest stable substep; raise the substeps")]
+struct Unstable {
+    margin: f64,
+}
+
+fn command(cli: Cli) -> Result<()> {
+    match cli.command {
         Command::Run(args) => run(args),
         Command::Check { scene, grid, substeps } => check(&scene, grid, substeps),
         Command::Bench(args) => bench::run(args),
         Command::Study(StudyCommand::Accuracy(args)) => study::accuracy(args),
         Command::Figure { figure, out } => {
             figure::write(figure, &out)?;
-            println!("wrote {}", out.display());
+            out!("wrote {}", out.display())?;
             Ok(())
         }
         Command::Backends => {
             for b in backends::all() {
-                println!("{:<8} {}", b.name, b.description);
+                out!("{:<8} {}", b.name, b.description)?;
                 match (b.adapters)() {
-                    Ok(list) if !list.is_empty() => list.iter().for_each(|a| println!("         - {a}")),
-                    Ok(_) => println!("         (no adapter found)"),
-                    Err(why) => println!("         unavailable: {why}"),
-                }
+                    Ok(list) if !list.is_empty() => list.iter().try_for_each(|a| out!("         - {a}")),
+                    Ok(_) => out!("         (no adapter found)"),
+                    Err(why) => out!("         unavailable: {why}"),
+                }?;
             }
             Ok(())
         }
@@ -159,28 +201,31 @@ fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> 
     let [st, sh, be] = model.spring_counts();
     let memory = MemoryEstimate::of(&scene);
     let bound = stability::stable_substep(&scene);
-    println!("scene      {} — {}", scene.name, scene.description);
-    println!("grid       {nx} x {ny} = {} vertices", scene.vertex_count());
-    println!("springs    {st} structural, {sh} shear, {be} bend ({} in all)", st + sh + be);
-    println!("effects    {:?}", scene.effects);
-    println!("mass       {:.4e} kg per vertex", scene.vertex_mass());
-    println!(
+    out!("scene      {} — {}", scene.name, scene.description)?;
+    out!("grid       {nx} x {ny} = {} vertices", scene.vertex_count())?;
+    out!("springs    {st} structural, {sh} shear, {be} bend ({} in all)", st + sh + be)?;
+    out!("effects    {:?}", scene.effects)?;
+    out!("mass       {:.4e} kg per vertex", scene.vertex_mass())?;
+    out!(
         "memory     {:.2} MiB on the device ({:.2} MiB largest buffer)",
         mib(memory.device_bytes),
         mib(memory.largest_buffer_bytes)
-    );
-    println!(
+    )?;
+    out!(
         "substep    {:.3e} s ({} per frame of {:.4} s)",
         scene.substep_dt(),
         scene.substeps_per_frame(),
         scene.time.frame_dt
-    );
-    println!(
+    )?;
+    out!(
         "stability  largest stable substep {bound:.3e} s; margin {:.2} ({})",
         scene.substep_dt() / bound,
         if scene.substep_dt() <= bound { "stable" } else { "UNSTABLE: raise the substeps" }
-    );
-    println!("ok");
+    )?;
+    if scene.substep_dt() > bound {
+        return Err(Unstable { margin: scene.substep_dt() / bound }.into());
+    }
+    out!("ok")?;
     Ok(())
 }
 
@@ -191,6 +236,9 @@ fn mib(bytes: u64) -> f64 {
 fn run(args: RunArgs) -> Result<()> {
     let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
     let backend = backends::find(&args.backend).map_err(anyhow::Error::msg)?;
+    if let Some(png) = &args.png {
+        output::check_writable(png)?;
+    }
     let frames = args.frames.unwrap_or(scene.time.frames);
     let mut sim = (backend.create)(&scene, &args.tuning.tuning())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;
@@ -222,14 +270,14 @@ fn run(args: RunArgs) -> Result<()> {
         report::Measured { state: &state, diagnostics: &diagnostics, counts: &counts, energy: &energy, frames, wall };
     let report = report::Report::new(&*sim, &model, &measured);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        out!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
-        report.print_text();
+        report.print_text()?;
     }
     if let Some(png) = &args.png {
         render::write_png(&model, &state, png, 800, 600)?;
         if !args.json {
-            println!("picture     {}", png.display());
+            out!("picture     {}", png.display())?;
         }
     }
     if report.nan_count > 0 {

@@ -82,13 +82,19 @@ pub fn write_png(
     height: usize,
 ) -> anyhow::Result<()> {
     let pixels = render(model, state, width, height);
-    let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width as u32, height as u32);
+    crate::output::write_atomically(path, &encode_png(&pixels, width as u32, height as u32)?)
+}
+
+/// RGB8 `pixels` of `width × height` as a PNG file's bytes.
+pub fn encode_png(pixels: &[u8], width: u32, height: u32) -> anyhow::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, width, height);
     encoder.set_color(png::ColorType::Rgb);
     encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().context("cannot write PNG header")?;
-    writer.write_image_data(&pixels).context("cannot write PNG data")?;
-    Ok(())
+    let mut writer = encoder.write_header().context("cannot encode the PNG header")?;
+    writer.write_image_data(pixels).context("cannot encode the PNG data")?;
+    writer.finish().context("cannot encode the PNG")?;
+    Ok(bytes)
 }
 
 /// Renders to RGB8 pixels.

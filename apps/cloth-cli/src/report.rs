@@ -86,33 +86,48 @@ impl Report {
         }
     }
 
-    pub fn print_text(&self) {
+    pub fn print_text(&self) -> std::io::Result<()> {
         let c = self.final_centroid_m;
-        println!("scene       {} on {} ({})", self.scene, self.backend, self.adapter);
-        println!(
+        out!("scene       {} on {} ({})", self.scene, self.backend, self.adapter)?;
+        out!(
             "cloth       {}x{} = {} vertices; springs {} structural, {} shear, {} bend",
-            self.grid[0], self.grid[1], self.vertices, self.springs.structural, self.springs.shear, self.springs.bend
-        );
-        println!(
+            self.grid[0],
+            self.grid[1],
+            self.vertices,
+            self.springs.structural,
+            self.springs.shear,
+            self.springs.bend
+        )?;
+        out!(
             "time        {} frames x {} substeps of {:.3e} s = {:.3} s simulated (stable bound {:.3e} s)",
-            self.frames, self.substeps_per_frame, self.substep_s, self.simulated_seconds, self.stable_substep_s
-        );
+            self.frames,
+            self.substeps_per_frame,
+            self.substep_s,
+            self.simulated_seconds,
+            self.stable_substep_s
+        )?;
         match self.max_penetration_fraction_of_radius {
-            Some(f) => println!(
-                "contact     max penetration {:.3e} m ({:.2}% of the radius)",
-                self.max_penetration_m,
-                100.0 * f
-            ),
-            None => println!("contact     no sphere"),
-        }
-        println!(
+            Some(f) => {
+                out!("contact     max penetration {:.3e} m ({:.2}% of the radius)", self.max_penetration_m, 100.0 * f)
+            }
+            None => out!("contact     no sphere"),
+        }?;
+        out!(
             "state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}",
-            c[0], c[1], c[2], self.final_kinetic_energy_j, self.nan_count
-        );
-        println!(
+            c[0],
+            c[1],
+            c[2],
+            self.final_kinetic_energy_j,
+            self.nan_count
+        )?;
+        out!(
             "speed       {:.3} ms per frame (wall clock); {:.2} submissions and {:.2} host waits per frame; \
              {} substeps per dispatch",
-            self.wall_ms_per_frame, self.submissions_per_frame, self.host_waits_per_frame, self.substeps_per_dispatch
-        );
+            self.wall_ms_per_frame,
+            self.submissions_per_frame,
+            self.host_waits_per_frame,
+            self.substeps_per_dispatch
+        )?;
+        Ok(())
     }
 }

@@ -304,3 +304,133 @@ fn a_wrong_tuning_flag_is_refused_naming_it() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("--tile") && stderr.contains("WIDTHxHEIGHTxSUBSTEPS"), "{stderr}");
 }
+
+/// A successful run prints nothing on standard error, on every backend, also on a machine
+/// without a display session (no `XDG_RUNTIME_DIR`, where Mesa would complain).
+#[test]
+fn a_successful_run_is_quiet_on_stderr_on_every_backend() {
+    for backend in ["cpu", "cpu-f64", "wgpu", "vulkano"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_cloth"))
+            .args(["run", "--backend", backend, "--frames", "3", "--grid", "8x8"])
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+            .env_remove("XDG_RUNTIME_DIR")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        if !out.status.success() && stderr.contains("unavailable") && std::env::var_os("CI").is_none() {
+            eprintln!("SKIPPED {backend}: {stderr}");
+            continue;
+        }
+        assert!(out.status.success(), "{backend}: {stderr}");
+        assert!(stderr.is_empty(), "{backend} printed on stderr: {stderr}");
+    }
+}
+
+/// Output errors end the command with a message and a non-zero code, never a panic; a closed
+/// pipe (`cloth ... | head`) ends it quietly, as Unix tools end.
+#[test]
+fn output_errors_end_the_command_without_a_panic() {
+    let full = std::fs::File::create("/dev/full").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cloth")).arg("backends").stdout(full).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot write to standard output") && !stderr.contains("panicked"), "{stderr}");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cloth"))
+        .args(["bench", "--backends", "cpu", "--grids", "16,24,32", "--substeps", "4", "--frames", "1"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(141), "{stderr}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("error"), "{stderr}");
+}
+
+/// A command that produced no result says so and exits non-zero; a flag it would have adjusted is
+/// refused; `cloth check` exits 2 for a valid scene whose substep exceeds the stable bound.
+#[test]
+fn exit_codes_say_whether_there_is_a_result() {
+    let out = cloth(&["bench", "--backends", "cpu", "--grids", "1", "--substeps", "4", "--frames", "1"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("no row was measured"), "{stderr}");
+    for args in [&["bench", "--frames", "0"][..], &["run", "--frames", "0"]] {
+        let out = cloth(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains("--frames"), "{args:?}: {stderr}");
+    }
+    let out = cloth(&["check", "scenes/drape.ron", "--substeps", "1"]);
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert_eq!(out.status.code(), Some(2), "{stdout}{stderr}");
+    assert!(stdout.contains("UNSTABLE") && stderr.contains("unstable: the substep is"), "{stdout}{stderr}");
+    assert_eq!(cloth(&["check", "scenes/drape.ron"]).status.code(), Some(0));
+}
+
+/// Outputs are checked before the run starts, and written whole or not at all.
+#[test]
+fn outputs_are_checked_first_and_never_left_half_written() {
+    let out = cloth(&["run", "--frames", "100000", "--png", "no/such/folder/x.png"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("cannot write no/such/folder/x.png"), "{stderr}");
+    // A study whose output name is claimed by another run in the same folder is refused.
+    let dir = std::env::temp_dir().join(format!("cloth-outputs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("accuracy.csv");
+    std::fs::write(dir.join("accuracy.csv.lock"), "").unwrap();
+    let out = cloth(&[
+        "study",
+        "accuracy",
+        "--grid",
+        "4x4",
+        "--duration",
+        "0.02",
+        "--substeps",
+        "4",
+        "--backends",
+        "cpu",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("another run is writing"), "{stderr}");
+    std::fs::remove_file(dir.join("accuracy.csv.lock")).unwrap();
+    // A CSV whose final name is a folder: refused before the run, nothing left behind.
+    std::fs::create_dir_all(dir.join("taken.csv")).unwrap();
+    let out = cloth(&[
+        "bench",
+        "--backends",
+        "cpu",
+        "--grids",
+        "8",
+        "--substeps",
+        "2",
+        "--frames",
+        "1",
+        "--csv",
+        dir.join("taken.csv").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("it is a folder"));
+    // A study that succeeds leaves its files and no temporary or lock file.
+    let out = cloth(&[
+        "study",
+        "accuracy",
+        "--grid",
+        "4x4",
+        "--duration",
+        "0.02",
+        "--substeps",
+        "4",
+        "--backends",
+        "cpu",
+        "--no-bisection",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let mut names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    names.sort();
+    assert_eq!(names, ["accuracy.csv", "accuracy.png", "accuracy.svg", "taken.csv"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

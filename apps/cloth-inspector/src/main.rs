@@ -42,6 +42,10 @@ struct Args {
 }
 
 fn main() -> Result<()> {
+    if let Some(dir) = cloth_backends::private_runtime_dir(std::env::var_os("XDG_RUNTIME_DIR").as_deref()) {
+        // SAFETY: at start-up, before any thread is spawned.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", dir) };
+    }
     let args = Args::parse();
     if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
         bail!(

@@ -123,14 +123,20 @@ pub fn last_study_csv() -> Option<PathBuf> {
 }
 
 /// Reads the points of a CSV written by `cloth study accuracy` (finite rows; the cost is column
-/// 11, `cost_ms_per_simulated_s`).
+/// 11, `cost_ms_per_simulated_s`). A file that does not end its last row, or a row with fewer
+/// columns than the header, is refused whole rather than shown in part: it is not a complete
+/// study.
 pub fn load_csv(path: &Path) -> Result<Vec<StudyPoint>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let columns = text.lines().next().map_or(0, |header| header.split(',').count()).max(11);
+    if !text.ends_with('\n') {
+        return Err(format!("{} is incomplete (its last row is cut): not shown", path.display()));
+    }
     let mut points = Vec::new();
     for (n, line) in text.lines().enumerate().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
-        if f.len() < 11 {
-            return Err(format!("{} line {}: expected 11 columns, found {}", path.display(), n + 1, f.len()));
+        if f.len() < columns {
+            return Err(format!("{} line {}: expected {columns} columns, found {}", path.display(), n + 1, f.len()));
         }
         let number = |s: &str| s.parse::<f64>().map_err(|e| format!("{} line {}: '{s}': {e}", path.display(), n + 1));
         let (error, cost) = (number(f[4])?, number(f[10])?);
@@ -158,6 +164,19 @@ mod tests {
         assert_eq!((p.done, p.total, p.error.clone()), (p.total, 13, None));
         let error = |series: &str| p.points.iter().find(|q| q.series == series).map(|q| q.rms_error_m).unwrap();
         assert!(error("cpu rk4") < error("cpu verlet") && error("cpu verlet") < error("cpu euler"), "{:?}", p.points);
+    }
+
+    #[test]
+    fn a_study_csv_cut_short_is_not_shown() {
+        let path = crate::panels::scene::scenes_dir().join("../docs/accuracy.csv");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let cut = std::env::temp_dir().join(format!("cloth-cut-study-{}.csv", std::process::id()));
+        for end in [text.len() - 1, text.len() / 2] {
+            std::fs::write(&cut, &text[..end]).unwrap();
+            let err = load_csv(&cut).unwrap_err();
+            assert!(err.contains("incomplete") || err.contains("columns"), "{err}");
+        }
+        std::fs::remove_file(&cut).unwrap();
     }
 
     #[test]

@@ -90,3 +90,20 @@ pub fn find(name: &str) -> Result<Backend, String> {
         .find(|b| b.name == name)
         .ok_or_else(|| format!("unknown backend '{name}': this build has {}", names.join(", ")))
 }
+
+/// Where Mesa's Vulkan drivers find a runtime directory when `current` (the value of
+/// `XDG_RUNTIME_DIR`) is not one: a private folder (mode 0700) of this user in the temporary
+/// directory, created if missing. Without one, creating a wgpu instance on a machine without a
+/// display session prints "error: XDG_RUNTIME_DIR is invalid or not set" though nothing is
+/// wrong. `None` when `current` is a folder already, or when none can be made.
+pub fn private_runtime_dir(current: Option<&std::ffi::OsStr>) -> Option<std::path::PathBuf> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    if current.is_some_and(|dir| std::path::Path::new(dir).is_dir()) {
+        return None;
+    }
+    let uid = std::fs::metadata("/proc/self").map(|m| m.uid()).unwrap_or(0);
+    let dir = std::env::temp_dir().join(format!("cloth-runtime-{uid}"));
+    std::fs::create_dir_all(&dir).ok()?;
+    let owned = std::fs::metadata(&dir).is_ok_and(|m| m.uid() == uid);
+    (owned && std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700)).is_ok()).then_some(dir)
+}

@@ -76,7 +76,7 @@ impl Effect {
 /// The set of effects a scene simulates. Serialised in RON as a list of names,
 /// e.g. `effects: [Gravity, StructuralSprings, ShearSprings]`.
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(from = "Vec<Effect>", into = "Vec<Effect>")]
+#[serde(try_from = "Vec<Effect>", into = "Vec<Effect>")]
 pub struct EffectSet {
     bits: u32,
 }
@@ -162,9 +162,20 @@ impl FromIterator<Effect> for EffectSet {
     }
 }
 
-impl From<Vec<Effect>> for EffectSet {
-    fn from(v: Vec<Effect>) -> Self {
-        v.into_iter().collect()
+impl TryFrom<Vec<Effect>> for EffectSet {
+    type Error = String;
+
+    /// The set of a scene's list; an effect listed twice is an error (it is one effect, and a
+    /// second mention is more likely a typo for another).
+    fn try_from(v: Vec<Effect>) -> Result<Self, String> {
+        let mut set = Self::empty();
+        for e in v {
+            if set.contains(e) {
+                return Err(format!("the effect {e:?} is listed twice: list each effect once"));
+            }
+            set.set(e, true);
+        }
+        Ok(set)
     }
 }
 

@@ -11,13 +11,26 @@ use crate::stability;
 /// before anything is allocated.
 pub const MAX_HOST_BYTES: u64 = 8 << 30;
 
+/// Largest scene file read, bytes (1 MiB; the scenes of `scenes/` are a few KiB): a larger file,
+/// or one that is not a regular file (a device, a pipe), is refused before it is read.
+pub const MAX_SCENE_BYTES: u64 = 1 << 20;
+
+/// Most problems one validation lists; the rest are counted in one last entry.
+pub const MAX_PROBLEMS: usize = 20;
+
 struct Checker {
     problems: Vec<Problem>,
+    /// Problems found beyond [`MAX_PROBLEMS`].
+    more: usize,
 }
 
 impl Checker {
     fn fail(&mut self, field: impl Into<String>, message: impl Into<String>, fix: impl Into<String>) {
-        self.problems.push(Problem { field: field.into(), message: message.into(), fix: fix.into() });
+        if self.problems.len() < MAX_PROBLEMS {
+            self.problems.push(Problem { field: field.into(), message: message.into(), fix: fix.into() });
+        } else {
+            self.more += 1;
+        }
     }
 
     fn finite(&mut self, field: &str, v: f64) -> bool {
@@ -75,7 +88,7 @@ impl Scene {
     /// # Errors
     /// [`SceneError::Invalid`] when any value is unusable.
     pub fn validate(&self) -> Result<Vec<Problem>, SceneError> {
-        let mut c = Checker { problems: Vec::new() };
+        let mut c = Checker { problems: Vec::new(), more: 0 };
         let cloth = &self.cloth;
         let [nx, ny] = cloth.resolution;
         let mut grid_ok = true;
@@ -162,6 +175,10 @@ impl Scene {
                 "add SphereContact or remove Friction",
             );
         }
+        if c.more > 0 {
+            let message = format!("{} more problem(s) not listed", c.more);
+            c.problems.push(Problem { field: "…".into(), message, fix: "fix the ones above and check again".into() });
+        }
         if !c.problems.is_empty() {
             return Err(SceneError::Invalid(c.problems));
         }
@@ -191,6 +208,8 @@ impl Scene {
     /// [`SceneError::Parse`] with line and column for malformed text,
     /// [`SceneError::Invalid`] listing every validation problem.
     pub fn from_ron_str(text: &str) -> Result<Self, SceneError> {
+        // A byte-order mark (some editors write one) is not part of the scene.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let scene: Scene = ron::de::from_str(text).map_err(SceneError::from_ron)?;
         scene.validate()?;
         Ok(scene)
@@ -199,10 +218,21 @@ impl Scene {
     /// Reads, parses and validates a RON scene file.
     ///
     /// # Errors
-    /// [`SceneError::Io`] when the file cannot be read, else as [`Scene::from_ron_str`].
+    /// [`SceneError::Io`] when the file cannot be read, is not a regular file, or is larger than
+    /// [`MAX_SCENE_BYTES`]; else as [`Scene::from_ron_str`].
     pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
+        use std::io::Read as _;
+        let io = |source| SceneError::Io { path: path.display().to_string(), source };
+        let invalid = |what: String| io(std::io::Error::new(std::io::ErrorKind::InvalidInput, what));
+        let file = std::fs::File::open(path).map_err(io)?;
+        if !file.metadata().map_err(io)?.is_file() {
+            return Err(invalid("it is not a regular file".into()));
+        }
+        let mut text = String::new();
+        file.take(MAX_SCENE_BYTES + 1).read_to_string(&mut text).map_err(io)?;
+        if text.len() as u64 > MAX_SCENE_BYTES {
+            return Err(invalid(format!("it is larger than {MAX_SCENE_BYTES} bytes, the most a scene file may be")));
+        }
         Self::from_ron_str(&text)
     }
 }

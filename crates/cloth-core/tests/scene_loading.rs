@@ -89,3 +89,41 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_byte_order_mark_is_accepted() {
+    let text = format!("\u{feff}{}", Scene::default().to_ron_string());
+    assert_eq!(Scene::from_ron_str(&text).unwrap(), Scene::default());
+}
+
+#[test]
+fn an_effect_listed_twice_is_refused_naming_it() {
+    let err = Scene::from_ron_str("Scene(effects: [Gravity, StructuralSprings, Gravity])").unwrap_err().to_string();
+    assert!(err.contains("Gravity is listed twice"), "{err}");
+}
+
+/// A device, a folder or a file larger than the limit is refused before it is read.
+#[test]
+fn only_regular_files_of_bounded_size_are_read() {
+    for path in ["/dev/zero", "/tmp"] {
+        let err = Scene::load(std::path::Path::new(path)).unwrap_err().to_string();
+        assert!(err.contains("not a regular file"), "{path}: {err}");
+    }
+    let big = std::env::temp_dir().join(format!("cloth-big-scene-{}.ron", std::process::id()));
+    let padding = " ".repeat(cloth_core::validation::MAX_SCENE_BYTES as usize);
+    std::fs::write(&big, format!("Scene(){padding}")).unwrap();
+    let err = Scene::load(&big).unwrap_err().to_string();
+    std::fs::remove_file(&big).unwrap();
+    assert!(err.contains("larger than 1048576 bytes"), "{err}");
+}
+
+/// A million bad pins give a short message: the first problems and a count of the rest.
+#[test]
+fn the_list_of_problems_is_capped() {
+    let mut scene = Scene::default();
+    scene.cloth.pins = vec![cloth_core::scene::Pin::Vertex(u32::MAX); 1_000_000];
+    let err = scene.validate().unwrap_err();
+    assert_eq!(err.problems().len(), cloth_core::validation::MAX_PROBLEMS + 1);
+    let text = err.to_string();
+    assert!(text.contains("999980 more problem(s) not listed") && text.len() < 8_000, "{}", &text[..200]);
+}

@@ -107,9 +107,9 @@ impl Row {
         )
     }
 
-    pub fn print(&self) {
+    pub fn print(&self) -> std::io::Result<()> {
         let gpu = self.gpu_ms_per_simulated_s.map(|g| format!("{g:.2}")).unwrap_or_else(|| "-".into());
-        println!(
+        out!(
             "{:<8} {:<7} {:>8} {:>10.3e} {:>11.3e} {:>11.3e} {:>12.3e} {:>10.3e} {:>11.3e} {:>7} {:>11.2} {:>11}",
             self.backend,
             self.integrator.name(),
@@ -123,12 +123,12 @@ impl Row {
             self.finite,
             self.wall_ms_per_simulated_s,
             gpu
-        );
+        )
     }
 }
 
-pub fn print_header() {
-    println!(
+pub fn print_header() -> std::io::Result<()> {
+    out!(
         "{:<8} {:<7} {:>8} {:>10} {:>11} {:>11} {:>12} {:>10} {:>11} {:>7} {:>11} {:>11}",
         "backend",
         "method",
@@ -142,7 +142,7 @@ pub fn print_header() {
         "finite",
         "wall ms/s",
         "GPU ms/s"
-    );
+    )
 }
 
 /// Why a run did not give a row.

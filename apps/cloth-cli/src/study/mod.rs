@@ -112,6 +112,17 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         bail!("--substeps needs at least one count, each at least 1 (got {:?})", args.substeps);
     }
     let integrators = parse_integrators(&args.integrators)?;
+    // The outputs, checked and claimed before the run: a second study writing the same files
+    // in the same folder is refused rather than left to overwrite this one's.
+    if let Some(dir) = args.csv.parent()
+        && !dir.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let _claim = crate::output::OutputLock::claim(&args.csv)?;
+    for path in [Some(&args.csv), args.report.as_ref()].into_iter().flatten() {
+        crate::output::check_writable(path)?;
+    }
     let chosen: Vec<backends::Backend> =
         args.backends.iter().map(|n| backends::find(n).map_err(anyhow::Error::msg)).collect::<Result<_>>()?;
     let frames = (args.duration / base.time.frame_dt).round().max(1.0) as u32;
@@ -123,7 +134,7 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
     );
     let reference = measure::Reference::new(&base, frames, reference_substeps)?;
 
-    measure::print_header();
+    measure::print_header()?;
     let runs = (chosen.len() * integrators.len() * args.substeps.len()) as u64;
     let bar = progress_bar(runs, "runs");
     let mut study = Study {
@@ -142,14 +153,14 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
                 bar.set_message(format!("{} {} {n}", backend.name, integrator.name()));
                 match measure::run(backend, &args.tuning.tuning(), &base, integrator, n, frames, &reference) {
                     Ok((row, adapter)) => {
-                        bar.suspend(|| row.print());
+                        bar.suspend(|| row.print())?;
                         if !study.adapters.iter().any(|(b, _)| b == backend.name) {
                             study.adapters.push((backend.name.to_string(), adapter));
                         }
                         study.rows.push(row);
                     }
                     Err(measure::RunError::Skipped(reason)) => {
-                        bar.suspend(|| println!("{:<8} {:<7} skipped: {reason}", backend.name, integrator.name()));
+                        bar.suspend(|| out!("{:<8} {:<7} skipped: {reason}", backend.name, integrator.name()))?;
                         study.skipped.push((backend.name.to_string(), integrator.name().to_string(), reason));
                         bar.inc((args.substeps.len() - done) as u64);
                         break;
@@ -166,10 +177,10 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
     bar.finish_and_clear();
 
     if !args.no_bisection {
-        println!(
+        out!(
             "\nlargest stable substep (bisection, 2000 substeps from the scene's start) against the predictions: \
              the spectral estimate (power iteration on M⁻¹K) and the safe Gershgorin bound:"
-        );
+        )?;
         for backend in &chosen {
             if study.skipped.iter().any(|(b, _, _)| b == backend.name)
                 && !study.adapters.iter().any(|(b, _)| b == backend.name)
@@ -178,45 +189,38 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
             }
             for &integrator in &integrators {
                 let limit = bisection::largest_stable_substep(backend, &args.tuning.tuning(), &base, integrator)?;
-                println!("  {limit}");
+                out!("  {limit}")?;
                 study.limits.push(limit);
             }
         }
     }
 
     write_csv(&study.rows, &args.csv)?;
-    println!("\nwrote {}", args.csv.display());
+    out!("\nwrote {}", args.csv.display())?;
     let (svg, png) = (args.csv.with_extension("svg"), args.csv.with_extension("png"));
     plot::write(&study, &svg, &png)?;
-    println!("wrote {} and {}", svg.display(), png.display());
+    out!("wrote {} and {}", svg.display(), png.display())?;
     if let Some(path) = &args.report {
         let dir = path.parent().unwrap_or(Path::new("."));
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("accuracy");
         let copy = |from: &Path, extension: &str| -> Result<String> {
             let name = format!("{stem}.{extension}");
-            std::fs::copy(from, dir.join(&name))
-                .with_context(|| format!("cannot copy {} to {}", from.display(), dir.join(&name).display()))?;
+            let bytes = std::fs::read(from).with_context(|| format!("cannot read {}", from.display()))?;
+            crate::output::write_atomically(&dir.join(&name), &bytes)?;
             Ok(name)
         };
         let files = report::Files { csv: copy(&args.csv, "csv")?, svg: copy(&svg, "svg")?, png: copy(&png, "png")? };
         let text = report::markdown(&study, &files);
-        std::fs::write(path, text).with_context(|| format!("cannot write the report {}", path.display()))?;
-        println!("wrote the report {} (with {}, {} and {})", path.display(), files.csv, files.svg, files.png);
+        crate::output::write_atomically(path, text.as_bytes())?;
+        out!("wrote the report {} (with {}, {} and {})", path.display(), files.csv, files.svg, files.png)?;
     }
     Ok(())
 }
 
 fn write_csv(rows: &[Row], path: &Path) -> Result<()> {
-    use std::io::Write;
-    if let Some(dir) = path.parent()
-        && !dir.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    let mut f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    writeln!(f, "{}", Row::CSV_HEADER)?;
+    let mut text = format!("{}\n", Row::CSV_HEADER);
     for r in rows {
-        writeln!(f, "{}", r.csv())?;
+        text += &format!("{}\n", r.csv());
     }
-    Ok(())
+    crate::output::write_atomically(path, text.as_bytes())
 }

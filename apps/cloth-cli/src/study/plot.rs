@@ -90,18 +90,14 @@ pub(crate) fn register_font() -> Result<()> {
 /// Writes the plot as SVG and PNG.
 pub fn write(study: &Study, svg: &Path, png: &Path) -> Result<()> {
     register_font()?;
-    draw(SVGBackend::new(svg, SIZE).into_drawing_area(), study)
+    let mut text = String::new();
+    draw(SVGBackend::with_string(&mut text, SIZE).into_drawing_area(), study)
         .with_context(|| format!("cannot draw {}", svg.display()))?;
+    crate::output::write_atomically(svg, text.as_bytes())?;
     let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     draw(BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area(), study)
         .with_context(|| format!("cannot draw {}", png.display()))?;
-    let file = std::fs::File::create(png).with_context(|| format!("cannot create {}", png.display()))?;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), SIZE.0, SIZE.1);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().with_context(|| format!("cannot write {}", png.display()))?;
-    writer.write_image_data(&pixels).with_context(|| format!("cannot write {}", png.display()))?;
-    Ok(())
+    crate::output::write_atomically(png, &crate::render::encode_png(&pixels, SIZE.0, SIZE.1)?)
 }
 
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, study: &Study) -> Result<()>
