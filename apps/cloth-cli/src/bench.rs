@@ -10,6 +10,7 @@ use cloth_backends::effect_cost;
 use cloth_backends::throughput::{
     self, MIN_BYTES_PER_VERTEX_SUBSTEP, PACKED_BYTES_PER_VERTEX_SUBSTEP, StepRule, ThroughputRow,
 };
+use cloth_core::budget::WorkBudget;
 use cloth_core::{Scene, SimError, Substeps};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -126,6 +127,13 @@ pub fn run(args: BenchArgs) -> Result<()> {
         for &n in &args.grids {
             for &rule in &rules {
                 bar.set_message(format!("{} {n}² {rule}", backend.name));
+                // The warm-up frame and the timed ones, within the backend's work budget.
+                let budget = WorkBudget::for_backend(backend.name);
+                if let Err(p) = budget.check(&throughput::bench_scene(n, rule), args.frames.saturating_add(1)) {
+                    bar.inc(1);
+                    bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {p}", backend.name, format!("{n}²")))?;
+                    continue;
+                }
                 let result = throughput::measure(backend, &tuning, n, rule, args.frames);
                 bar.inc(1);
                 let row = match result {
@@ -250,6 +258,13 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
                 _ => anyhow::bail!("--effects takes one number of substeps (or none: the scene's own)"),
             }
             scene.validate().with_context(|| format!("the scene '{}' at grid {n}", scene.name))?;
+            // Each row's warm-up and timed frames, over every row.
+            let rows = effect_cost::steps(&scene).len() as u32;
+            let frames = args.frames.saturating_add(1).saturating_mul(rows);
+            if let Err(p) = WorkBudget::for_backend(backend.name).check(&scene, frames) {
+                out!("{:<8} {n} refused: {p}", backend.name)?;
+                continue;
+            }
             let [nx, ny] = scene.cloth.resolution;
             let bar = ProgressBar::new(effect_cost::steps(&scene).len() as u64).with_style(
                 ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")

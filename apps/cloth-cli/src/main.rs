@@ -31,6 +31,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use cloth_backends as backends;
+use cloth_core::budget::WorkBudget;
 use cloth_core::{ClothModel, Energy, Scene, Substeps, stability};
 use cloth_gpu::memory::MemoryEstimate;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -56,6 +57,9 @@ enum Command {
         /// Override the substeps per frame (a number, or `auto`).
         #[arg(long, value_parser = parse_substeps)]
         substeps: Option<Substeps>,
+        /// The backend whose work budget to check the scene's run against.
+        #[arg(long, default_value = "cpu")]
+        backend: String,
     },
     /// List the backends compiled in and the adapters each can use.
     Backends,
@@ -172,7 +176,7 @@ struct Unstable {
 fn command(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run(args),
-        Command::Check { scene, grid, substeps } => check(&scene, grid, substeps),
+        Command::Check { scene, grid, substeps, backend } => check(&scene, grid, substeps, &backend),
         Command::Bench(args) => bench::run(args),
         Command::Study(StudyCommand::Accuracy(args)) => study::accuracy(args),
         Command::Figure { figure, out } => {
@@ -194,8 +198,11 @@ fn command(cli: Cli) -> Result<()> {
     }
 }
 
-fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> Result<()> {
+fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>, backend: &str) -> Result<()> {
     let scene = load_scene(Some(path), grid, substeps)?;
+    let backend = backends::find(backend).map_err(anyhow::Error::msg)?;
+    let budget = WorkBudget::for_backend(backend.name);
+    let work = budget.check(&scene, scene.time.frames).map_err(|p| anyhow::anyhow!("time.{p}"))?;
     let [nx, ny] = scene.cloth.resolution;
     let model = ClothModel::new(&scene);
     let [st, sh, be] = model.spring_counts();
@@ -217,10 +224,20 @@ fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> 
         scene.substeps_per_frame(),
         scene.time.frame_dt
     )?;
+    if bound.is_finite() {
+        out!(
+            "stability  largest stable substep {bound:.3e} s; margin {:.2} ({})",
+            scene.substep_dt() / bound,
+            if scene.substep_dt() <= bound { "stable" } else { "UNSTABLE: raise the substeps" }
+        )?;
+    } else {
+        out!("stability  no bound: nothing in the scene (springs, contact, damping) limits the substep")?;
+    }
     out!(
-        "stability  largest stable substep {bound:.3e} s; margin {:.2} ({})",
-        scene.substep_dt() / bound,
-        if scene.substep_dt() <= bound { "stable" } else { "UNSTABLE: raise the substeps" }
+        "work       {} frames are {work:.3e} vertex-substeps of the {:.0e} one command may run on {}",
+        scene.time.frames,
+        budget.max_vertex_substeps as f64,
+        backend.name
     )?;
     if scene.substep_dt() > bound {
         return Err(Unstable { margin: scene.substep_dt() / bound }.into());
@@ -240,6 +257,7 @@ fn run(args: RunArgs) -> Result<()> {
         output::check_writable(png)?;
     }
     let frames = args.frames.unwrap_or(scene.time.frames);
+    WorkBudget::for_backend(backend.name).check(&scene, frames).map_err(|p| anyhow::anyhow!("--{p}"))?;
     let mut sim = (backend.create)(&scene, &args.tuning.tuning())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;
 

@@ -47,6 +47,15 @@ fn main() -> Result<()> {
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", dir) };
     }
     let args = Args::parse();
+    if args.screenshot.is_some() {
+        // The headless run's frames, within the work budget of the backend it runs on.
+        let scene = match &args.scene {
+            Some(path) => cloth_core::Scene::load(path).map_err(|e| anyhow!("{}: {e}", path.display()))?,
+            None => cloth_core::Scene::default(),
+        };
+        let budget = cloth_core::budget::WorkBudget::for_backend(args.backend.as_deref().unwrap_or("cpu"));
+        budget.check(&scene, args.frames).map_err(|p| anyhow!("--{p}"))?;
+    }
     if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
         bail!(
             "no display (neither DISPLAY nor WAYLAND_DISPLAY is set): run it on a desktop, under Xvfb \

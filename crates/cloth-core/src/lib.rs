@@ -2,7 +2,8 @@
 //!
 //! The backend-agnostic heart of the cloth workbench, written to be read:
 //!
-//! * [`scene`]: what to simulate, loaded from RON ([`Scene`]), and [`validation`];
+//! * [`scene`]: what to simulate, loaded from RON ([`Scene`]), and [`validation`], with the
+//!   limits of [`budget`];
 //! * [`effects`]: the physical effects a scene switches on ([`EffectSet`]);
 //! * [`grid`] and [`springs`]: the `nx × ny` mesh and its structural, shear and bend springs;
 //! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
@@ -30,6 +31,7 @@
 
 #![warn(missing_docs)]
 
+pub mod budget;
 pub mod coloring;
 pub mod constraints;
 pub mod effects;

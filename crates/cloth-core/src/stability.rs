@@ -130,14 +130,21 @@ pub fn auto_target_substep(scene: &Scene) -> f64 {
     stable_substep(scene) * Auto::SAFETY
 }
 
-/// Substeps per frame chosen by `Substeps::Auto`: the fewest that keep each substep below
-/// [`auto_target_substep`].
-pub fn auto_substeps(scene: &Scene) -> u32 {
+/// Substeps per frame `Substeps::Auto` needs: the fewest that keep each substep below
+/// [`auto_target_substep`], as a real number (it may exceed any integer type; validation
+/// refuses more than [`crate::budget::MAX_SUBSTEPS_PER_FRAME`]).
+pub fn auto_substeps_needed(scene: &Scene) -> f64 {
     let h = auto_target_substep(scene);
     if h.is_nan() || h <= 0.0 || !scene.time.frame_dt.is_finite() {
-        return 1;
+        return 1.0;
     }
-    let n = (scene.time.frame_dt / h).ceil();
+    (scene.time.frame_dt / h).ceil().max(1.0)
+}
+
+/// Substeps per frame chosen by `Substeps::Auto` ([`auto_substeps_needed`], which validation
+/// keeps within [`crate::budget::MAX_SUBSTEPS_PER_FRAME`]).
+pub fn auto_substeps(scene: &Scene) -> u32 {
+    let n = auto_substeps_needed(scene);
     if n.is_finite() { n.clamp(1.0, u32::MAX as f64) as u32 } else { 1 }
 }
 

@@ -1,5 +1,6 @@
 //! Scene validation: every problem at once, each naming the field and the fix.
 
+use crate::budget::{F32_MEANINGFUL, MAX_FRAMES, MAX_SUBSTEPS_PER_FRAME};
 use crate::effects::Effect;
 use crate::error::{Problem, SceneError};
 use crate::grid::pin_indices;
@@ -33,12 +34,22 @@ impl Checker {
         }
     }
 
+    /// Whether `v` is finite and, unless 0, within [`F32_MEANINGFUL`] in magnitude.
     fn finite(&mut self, field: &str, v: f64) -> bool {
-        if v.is_finite() {
-            return true;
+        let [lo, hi] = F32_MEANINGFUL;
+        if !v.is_finite() {
+            self.fail(field, format!("is {v}, not a finite number"), "write a finite number");
+            false
+        } else if v != 0.0 && !(lo..=hi).contains(&v.abs()) {
+            self.fail(
+                field,
+                format!("is {v:e}, outside the {lo:e} to {hi:e} in magnitude that f32 arithmetic keeps meaningful"),
+                format!("give 0 or a value between {lo:e} and {hi:e} in magnitude, in SI units"),
+            );
+            false
+        } else {
+            true
         }
-        self.fail(field, format!("is {v}, not a finite number"), "write a finite number");
-        false
     }
 
     fn positive(&mut self, field: &str, v: f64, unit: &str) {
@@ -133,6 +144,14 @@ impl Scene {
             Mass::PerVertex(m) => c.positive("cloth.mass.PerVertex", m, "kg"),
             Mass::Total(m) => c.positive("cloth.mass.Total", m, "kg"),
         }
+        let m = self.vertex_mass();
+        if c.problems.is_empty() && grid_ok && !(F32_MEANINGFUL[0]..=F32_MEANINGFUL[1]).contains(&m) {
+            c.fail(
+                "cloth.mass",
+                format!("gives {m:e} kg a vertex, outside what f32 arithmetic keeps meaningful"),
+                format!("give a mass of {:e} to {:e} kg a vertex", F32_MEANINGFUL[0], F32_MEANINGFUL[1]),
+            );
+        }
         let vertex_count = nx as u64 * ny as u64;
         for (k, pin) in cloth.pins.iter().enumerate() {
             if let Some(bad) = pin_indices(pin, nx, ny).into_iter().find(|&i| i >= vertex_count) {
@@ -165,8 +184,25 @@ impl Scene {
         c.vector("gravity", self.gravity);
         c.non_negative("air_drag", self.air_drag, "1/s");
         c.positive("time.frame_dt", self.time.frame_dt, "s");
-        if self.time.substeps == Substeps::Fixed(0) {
-            c.fail("time.substeps", "is Fixed(0); a frame needs at least one substep", "use Fixed(1) or more, or Auto");
+        match self.time.substeps {
+            Substeps::Fixed(0) => c.fail(
+                "time.substeps",
+                "is Fixed(0); a frame needs at least one substep",
+                "use Fixed(1) or more, or Auto",
+            ),
+            Substeps::Fixed(n) if n > MAX_SUBSTEPS_PER_FRAME => c.fail(
+                "time.substeps",
+                format!("is Fixed({n}), more than the {MAX_SUBSTEPS_PER_FRAME} substeps one frame may take"),
+                format!("use at most Fixed({MAX_SUBSTEPS_PER_FRAME}), or shorten time.frame_dt"),
+            ),
+            _ => {}
+        }
+        if self.time.frames > MAX_FRAMES {
+            c.fail(
+                "time.frames",
+                format!("is {}, more than the {MAX_FRAMES} frames one command may run", self.time.frames),
+                format!("use at most {MAX_FRAMES}"),
+            );
         }
         if self.effects.contains(Effect::Friction) && !self.effects.contains(Effect::SphereContact) {
             c.fail(
@@ -183,18 +219,40 @@ impl Scene {
             return Err(SceneError::Invalid(c.problems));
         }
 
-        let mut warnings = Vec::new();
+        // The work the substeps ask for, once the values they come from are known to be sound.
+        let too_stiff = "lower the stiffness or the contact stiffness, raise the mass, or shorten time.frame_dt";
         let bound = stability::stable_substep(self);
+        if bound.is_nan() || bound <= 0.0 {
+            let message = format!("the largest stable substep comes out as {bound}: the scene's values do not combine");
+            return Err(SceneError::Invalid(vec![Problem { field: "time".into(), message, fix: too_stiff.into() }]));
+        }
+        let auto = stability::auto_substeps_needed(self);
+        if self.time.substeps == Substeps::Auto && auto > MAX_SUBSTEPS_PER_FRAME as f64 {
+            let message = format!(
+                "is Auto, which needs {auto:.3e} substeps a frame, more than the {MAX_SUBSTEPS_PER_FRAME} one frame may take"
+            );
+            return Err(SceneError::Invalid(vec![Problem {
+                field: "time.substeps".into(),
+                message,
+                fix: too_stiff.into(),
+            }]));
+        }
+        let mut warnings = Vec::new();
         let dt = self.substep_dt();
         if dt > bound {
             let needed = (self.time.frame_dt / bound).ceil();
+            let fix = if needed <= MAX_SUBSTEPS_PER_FRAME as f64 {
+                format!("use Fixed({needed}) or more substeps per frame, or Auto")
+            } else {
+                format!("no substep count up to the {MAX_SUBSTEPS_PER_FRAME} allowed is stable: {too_stiff}")
+            };
             warnings.push(Problem {
                 field: "time.substeps".into(),
                 message: format!(
                     "substep {dt:.3e} s is {:.2}x the largest stable substep {bound:.3e} s: the simulation will blow up",
                     dt / bound
                 ),
-                fix: format!("use Fixed({needed}) or more substeps per frame, or Auto"),
+                fix,
             });
         }
         Ok(warnings)

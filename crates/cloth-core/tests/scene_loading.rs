@@ -86,6 +86,8 @@ proptest! {
             // A scene that passes validation has usable values everywhere.
             prop_assert!(scene.vertex_mass() > 0.0 && scene.substep_dt() > 0.0);
             prop_assert!(scene.vertex_count() >= 4);
+            prop_assert!(scene.substeps_per_frame() <= cloth_core::budget::MAX_SUBSTEPS_PER_FRAME);
+            prop_assert!(cloth_core::stability::stable_substep(&scene) > 0.0);
         }
     }
 }
@@ -126,4 +128,51 @@ fn the_list_of_problems_is_capped() {
     assert_eq!(err.problems().len(), cloth_core::validation::MAX_PROBLEMS + 1);
     let text = err.to_string();
     assert!(text.contains("999980 more problem(s) not listed") && text.len() < 8_000, "{}", &text[..200]);
+}
+
+/// Extreme but finite values, and counts that would run for years, are refused by validation
+/// with the field named, before anything runs.
+#[test]
+fn values_f32_cannot_carry_and_unbounded_work_are_refused() {
+    let cases = [
+        ("Scene(cloth: (mass: PerVertex(1e-300)))", "cloth.mass.PerVertex: is 1e-300"),
+        ("Scene(cloth: (mass: Total(1e300)))", "cloth.mass.Total: is 1e300"),
+        ("Scene(gravity: (0.0, -1e308, 0.0))", "gravity[1]: is -1e308"),
+        ("Scene(springs: (shear: (stiffness: 200.0, damping: 1e30)))", "springs.shear.damping: is 1e30"),
+        (
+            "Scene(cloth: (orientation: Axes(u: (1e300, 0.0, 0.0), v: (0.0, 0.0, 1.0))))",
+            "cloth.orientation.u[0]: is 1e300",
+        ),
+        ("Scene(cloth: (resolution: (1000, 1000), mass: Total(1e-10)))", "cloth.mass: gives 1e-16 kg a vertex"),
+        ("Scene(time: (substeps: Fixed(4294967295)))", "time.substeps: is Fixed(4294967295), more than the 1000000"),
+        ("Scene(time: (frame_dt: 10000000000.0, substeps: Auto))", "time.substeps: is Auto, which needs"),
+        ("Scene(time: (frames: 4294967295))", "time.frames: is 4294967295, more than the 10000000"),
+    ];
+    for (text, expected) in cases {
+        let err = Scene::from_ron_str(text).unwrap_err().to_string();
+        assert!(err.contains(expected), "{text}\n  gave: {err}\n  expected: {expected}");
+    }
+    // A substep that no allowed count makes stable says so instead of naming an impossible one.
+    let mut stiff = Scene::default();
+    stiff.springs.structural.stiffness = 1e15;
+    let warnings = stiff.validate().unwrap();
+    assert!(warnings[0].fix.contains("no substep count up to the 1000000 allowed is stable"), "{:?}", warnings[0]);
+}
+
+#[test]
+fn the_work_budget_refuses_a_command_that_would_run_for_hours() {
+    use cloth_core::budget::WorkBudget;
+    let scene = Scene::default();
+    assert_eq!(WorkBudget::CPU.check(&scene, 300), Ok(1024 * 40 * 300));
+    let refused = WorkBudget::CPU.check(&scene, 9_000_000).unwrap_err();
+    assert!(refused.message.contains("more than the 1e11 one command may run on cpu"), "{refused}");
+    assert!(refused.fix.contains("at most 2441406 frames"), "{refused}");
+    assert!(WorkBudget::GPU.check(&scene, 9_000_000).is_ok());
+    assert!(WorkBudget::GPU.check(&scene, 20_000_000).unwrap_err().message.contains("more than the 10000000"));
+    // When one frame alone is over the budget, fewer frames is not offered as the fix.
+    let mut huge = Scene::default();
+    huge.cloth.resolution = [4096, 4096];
+    huge.time.substeps = cloth_core::scene::Substeps::Fixed(1_000_000);
+    let refused = WorkBudget::CPU.check(&huge, 1).unwrap_err();
+    assert!(refused.fix.contains("one frame alone is 1.678e13"), "{refused}");
 }

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use cloth_backends as backends;
+use cloth_core::budget::{MAX_FRAMES, MAX_SUBSTEPS_PER_FRAME, WorkBudget};
 use cloth_core::{Integrator, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -125,9 +126,35 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
     }
     let chosen: Vec<backends::Backend> =
         args.backends.iter().map(|n| backends::find(n).map_err(anyhow::Error::msg)).collect::<Result<_>>()?;
-    let frames = (args.duration / base.time.frame_dt).round().max(1.0) as u32;
+    let frames = (args.duration / base.time.frame_dt).round().max(1.0);
+    if frames > MAX_FRAMES as f64 {
+        bail!(
+            "--duration {} s is {frames:.3e} frames of {} s, more than the {MAX_FRAMES} one command may run",
+            args.duration,
+            base.time.frame_dt
+        );
+    }
+    let frames = frames as u32;
     let finest = args.substeps.iter().copied().max().unwrap_or(64);
+    if finest > MAX_SUBSTEPS_PER_FRAME / 8 {
+        bail!(
+            "--substeps {finest} is more than {}: the f64 reference runs eight times the finest, and a frame may \
+             take at most {MAX_SUBSTEPS_PER_FRAME}",
+            MAX_SUBSTEPS_PER_FRAME / 8
+        );
+    }
     let reference_substeps = finest * 8;
+    // The reference (eight times the finest substeps, on the f64 CPU) and every run fit the
+    // budgets before anything runs.
+    let mut reference_scene = base.clone();
+    reference_scene.time.substeps = cloth_core::Substeps::Fixed(reference_substeps);
+    WorkBudget::CPU.check(&reference_scene, frames).map_err(|p| anyhow::anyhow!("the f64 reference: {p}"))?;
+    for backend in &chosen {
+        let mut finest_run = base.clone();
+        finest_run.time.substeps = cloth_core::Substeps::Fixed(finest);
+        let budget = WorkBudget::for_backend(backend.name);
+        budget.check(&finest_run, frames).map_err(|p| anyhow::anyhow!("{}: {p}", backend.name))?;
+    }
     eprintln!(
         "reference: f64 CPU, RK4, {reference_substeps} substeps per frame, {frames} frames of {:.4} s",
         base.time.frame_dt
