@@ -23,13 +23,15 @@ impl fmt::Display for Problem {
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The file could not be read.
-    #[error("cannot read scene file {path}: {source}")]
+    ///
+    /// The message carries the operating system's error itself rather than exposing it as a
+    /// `source`, so that a report of the error chain names it once.
+    #[error("cannot read scene file {path}: {error}")]
     Io {
         /// The path given.
         path: String,
         /// The operating system's error.
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The text is not a valid RON scene.
     #[error("scene is not valid RON at line {line}, column {column}: {message}")]

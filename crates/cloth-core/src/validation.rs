@@ -280,7 +280,7 @@ impl Scene {
     /// [`MAX_SCENE_BYTES`]; else as [`Scene::from_ron_str`].
     pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
         use std::io::Read as _;
-        let io = |source| SceneError::Io { path: path.display().to_string(), source };
+        let io = |error| SceneError::Io { path: path.display().to_string(), error };
         let invalid = |what: String| io(std::io::Error::new(std::io::ErrorKind::InvalidInput, what));
         let file = std::fs::File::open(path).map_err(io)?;
         if !file.metadata().map_err(io)?.is_file() {
