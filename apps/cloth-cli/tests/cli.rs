@@ -367,6 +367,14 @@ fn exit_codes_say_whether_there_is_a_result() {
     assert_eq!(cloth(&["check", "scenes/drape.ron"]).status.code(), Some(0));
 }
 
+/// A CPU accuracy study of a 4×4 cloth for 0.02 s, writing `csv`.
+fn tiny_study(csv: &std::path::Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["study", "accuracy", "--grid", "4x4", "--duration", "0.02", "--substeps", "4"];
+    args.extend(["--backends", "cpu", "--csv", csv.to_str().unwrap()]);
+    args.extend(extra);
+    cloth(&args)
+}
+
 /// Outputs are checked before the run starts, and written whole or not at all.
 #[test]
 fn outputs_are_checked_first_and_never_left_half_written() {
@@ -378,20 +386,7 @@ fn outputs_are_checked_first_and_never_left_half_written() {
     std::fs::create_dir_all(&dir).unwrap();
     let csv = dir.join("accuracy.csv");
     std::fs::write(dir.join("accuracy.csv.lock"), "").unwrap();
-    let out = cloth(&[
-        "study",
-        "accuracy",
-        "--grid",
-        "4x4",
-        "--duration",
-        "0.02",
-        "--substeps",
-        "4",
-        "--backends",
-        "cpu",
-        "--csv",
-        csv.to_str().unwrap(),
-    ]);
+    let out = tiny_study(&csv, &[]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("another run is writing"), "{stderr}");
     std::fs::remove_file(dir.join("accuracy.csv.lock")).unwrap();
@@ -412,21 +407,7 @@ fn outputs_are_checked_first_and_never_left_half_written() {
     ]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("it is a folder"));
     // A study that succeeds leaves its files and no temporary or lock file.
-    let out = cloth(&[
-        "study",
-        "accuracy",
-        "--grid",
-        "4x4",
-        "--duration",
-        "0.02",
-        "--substeps",
-        "4",
-        "--backends",
-        "cpu",
-        "--no-bisection",
-        "--csv",
-        csv.to_str().unwrap(),
-    ]);
+    let out = tiny_study(&csv, &["--no-bisection"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let mut names: Vec<String> =
         std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
