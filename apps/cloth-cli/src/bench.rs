@@ -29,9 +29,14 @@ pub struct BenchArgs {
     /// dt = 0.04/n (default 16,64,scaled; with `--effects`, one number, default the scene's own).
     #[arg(long, value_delimiter = ',')]
     substeps: Vec<StepRule>,
-    /// Frames timed per row (after one warm-up frame), at least 1.
+    /// Frames of each timing (after one warm-up frame), at least 1.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     frames: u32,
+    /// Timings of each row (`--frames` frames each); the table gives their median and spread
+    /// (the interquartile range). At least 1, and at least 3 with `--effects`, whose rows are
+    /// timed in alternating order and compared pairwise.
+    #[arg(long, default_value_t = cloth_backends::timing::DEFAULT_REPEATS, value_parser = clap::value_parser!(u32).range(1..))]
+    repeats: u32,
     /// Also write the rows to this CSV file.
     #[arg(long)]
     csv: Option<std::path::PathBuf>,
@@ -64,6 +69,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
         crate::output::check_writable(path)?;
     }
     if args.effects {
+        if args.repeats < effect_cost::MIN_REPEATS {
+            anyhow::bail!(
+                "--repeats {} is too few for --effects: an effect's cost is read from at least {} timings of each row \
+                 (use --repeats {} or more)",
+                args.repeats,
+                effect_cost::MIN_REPEATS,
+                effect_cost::MIN_REPEATS
+            );
+        }
         return effects(&args, &chosen);
     }
     let rules = if args.substeps.is_empty() {
@@ -101,7 +115,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         None => None,
     };
     out!(
-        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10} {:>10} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
+        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10} {:>10} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
         "backend",
         "grid",
         "substeps",
@@ -109,6 +123,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         "state",
         "dt (s)",
         "GPU ms/f",
+        "spread",
         "CPU ms/f",
         "wall ms/f",
         "Gvs/s",
@@ -129,12 +144,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 bar.set_message(format!("{} {n}² {rule}", backend.name));
                 // The warm-up frame and the timed ones, within the backend's work budget.
                 let budget = WorkBudget::for_backend(backend.name);
-                if let Err(p) = budget.check(&throughput::bench_scene(n, rule), args.frames.saturating_add(1)) {
+                if let Err(p) = budget.check(
+                    &throughput::bench_scene(n, rule),
+                    args.frames.saturating_mul(args.repeats).saturating_add(1),
+                ) {
                     bar.inc(1);
                     bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {p}", backend.name, format!("{n}²")))?;
                     continue;
                 }
-                let result = throughput::measure(backend, &tuning, n, rule, args.frames);
+                let result = throughput::measure(backend, &tuning, n, rule, args.frames, args.repeats);
                 bar.inc(1);
                 let row = match result {
                     Ok(row) => row,
@@ -149,13 +167,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
                     }
                 };
                 let gpu = row.gpu_ms_per_frame.map_or("-".to_string(), |ms| format!("{ms:.3}"));
+                // The spread of the timer the throughput comes from.
+                let spread = format!("{:.3}", row.gpu_ms_spread.unwrap_or(row.wall_ms_spread));
                 let ceiling = match (&bandwidth, row.gpu_ms_per_frame) {
                     (Some(b), Some(_)) => format!("{:.1}%", 100.0 * row.ceiling_fraction(b.bytes_per_s)),
                     _ => "-".to_string(),
                 };
                 bar.suspend(|| {
                     out!(
-                        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
+                        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>8} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
                         row.backend,
                         format!("{n}²"),
                         row.substeps,
@@ -163,6 +183,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
                         row.state_bytes.map_or("-".to_string(), |b| format!("{b} B")),
                         row.substep_dt,
                         gpu,
+                        spread,
                         row.cpu_ms_per_frame,
                         row.wall_ms_per_frame,
                         row.vertex_substeps_per_s / 1e9,
@@ -188,23 +209,27 @@ pub fn run(args: BenchArgs) -> Result<()> {
     out!(
         "fused: substeps per dispatch (the tiled Euler kernel fuses several); state: bytes a vertex the substeps hand each \
          other (24: semi-implicit Euler's packed state, 32: two vec4s; on the packed state the substeps take the grid's \
-         blocks forward and backward by turns where a substep moves {} to {} MB, --block-order); GPU ms/f: GPU time per frame (timestamp queries); CPU ms/f: host time in advance(); wall ms/f: to the end \
+         blocks forward and backward by turns where a substep moves {} to {} MB, --block-order); times are the medians \
+         of {} timings of {} frames; GPU ms/f: GPU time per frame (timestamp queries); spread: the interquartile range \
+         of the GPU time (of the wall time without one); CPU ms/f: host time in advance(); wall ms/f: to the end \
          of the work; Gvs/s: 1e9 vertex-substeps per second (from the GPU time where there is one); ceiling: that \
          throughput times {MIN_BYTES_PER_VERTEX_SUBSTEP} bytes over the copy bandwidth; sub/w: submissions and host \
          waits per frame (the wait that ends the measurement included).",
         cloth_gpu::geometry::ALTERNATE_ORDER_MIN_SUBSTEP_BYTES / 1_000_000,
-        cloth_gpu::geometry::ALTERNATE_ORDER_MAX_SUBSTEP_BYTES / 1_000_000
+        cloth_gpu::geometry::ALTERNATE_ORDER_MAX_SUBSTEP_BYTES / 1_000_000,
+        args.repeats,
+        args.frames
     )?;
     if let Some(path) = &args.csv {
         let b = bandwidth.as_ref().map(|b| b.bytes_per_s);
         let mut csv = String::from(
-            "backend,adapter,grid,step_rule,substeps,substep_dt_s,frames,gpu_ms_per_frame,cpu_ms_per_frame,\
-             wall_ms_per_frame,vertex_substeps_per_s,ceiling_fraction,copy_bandwidth_bytes_per_s,\
+            "backend,adapter,grid,step_rule,substeps,substep_dt_s,frames,repeats,gpu_ms_per_frame,gpu_ms_spread,\
+             cpu_ms_per_frame,wall_ms_per_frame,wall_ms_spread,vertex_substeps_per_s,ceiling_fraction,copy_bandwidth_bytes_per_s,\
              submissions_per_frame,host_waits_per_frame,finite,fused_substeps,state_bytes_per_vertex\n",
         );
         for r in &rows {
             csv += &format!(
-                "{},\"{}\",{},{},{},{:.6e},{},{},{:.6},{:.6},{:.6e},{},{},{:.3},{:.3},{},{},{}\n",
+                "{},\"{}\",{},{},{},{:.6e},{},{},{},{},{:.6},{:.6},{:.6},{:.6e},{},{},{:.3},{:.3},{},{},{}\n",
                 r.backend,
                 r.adapter.replace('"', "'"),
                 r.grid,
@@ -212,9 +237,12 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 r.substeps,
                 r.substep_dt,
                 r.frames,
+                r.repeats,
                 r.gpu_ms_per_frame.map_or(String::new(), |x| format!("{x:.6}")),
+                r.gpu_ms_spread.map_or(String::new(), |x| format!("{x:.6}")),
                 r.cpu_ms_per_frame,
                 r.wall_ms_per_frame,
+                r.wall_ms_spread,
                 r.vertex_substeps_per_s,
                 match (b, r.gpu_ms_per_frame) {
                     (Some(b), Some(_)) => format!("{:.4}", r.ceiling_fraction(b)),
@@ -240,7 +268,10 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
         Some(path) => Scene::load(path).with_context(|| format!("cannot use scene {}", path.display()))?,
         None => Scene::from_ron_str(FLAG_SCENE).context("the built-in flag scene")?,
     };
-    let mut csv = String::from("backend,adapter,grid,substeps,row,effects,ms_per_frame,added_ms,timer\n");
+    let mut csv = String::from(
+        "backend,adapter,grid,substeps,frames,repeats,row,effects,ms_per_frame,ms_spread,added,added_ms,\
+         added_low_ms,added_high_ms,timer\n",
+    );
     let mut measured = 0;
     for backend in chosen {
         for &n in &args.grids {
@@ -260,19 +291,20 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
             scene.validate().with_context(|| format!("the scene '{}' at grid {n}", scene.name))?;
             // Each row's warm-up and timed frames, over every row.
             let rows = effect_cost::steps(&scene).len() as u32;
-            let frames = args.frames.saturating_add(1).saturating_mul(rows);
+            let frames = args.frames.saturating_mul(args.repeats).saturating_add(1).saturating_mul(rows);
             if let Err(p) = WorkBudget::for_backend(backend.name).check(&scene, frames) {
                 out!("{:<8} {n} refused: {p}", backend.name)?;
                 continue;
             }
             let [nx, ny] = scene.cloth.resolution;
-            let bar = ProgressBar::new(effect_cost::steps(&scene).len() as u64).with_style(
-                ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")
+            let bar = ProgressBar::new(u64::from(rows) * u64::from(args.repeats)).with_style(
+                ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} timings")
                     .unwrap_or_else(|_| ProgressStyle::default_bar()),
             );
             bar.set_message(format!("{} {nx}x{ny}", backend.name));
+            let tuning = args.tuning.tuning();
             let breakdown =
-                match effect_cost::measure(&scene, backend, &args.tuning.tuning(), args.frames, |done, _| {
+                match effect_cost::measure(&scene, backend, &tuning, args.frames, args.repeats, |done, _| {
                     bar.set_position(done as u64)
                 }) {
                     Ok(rows) => rows,
@@ -292,33 +324,56 @@ fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
             let (adapter, substeps, timer, rows) =
                 (&breakdown.adapter, breakdown.substeps, breakdown.timer(), &breakdown.rows);
             out!(
-                "\n{} on {adapter}: scene '{}', {nx}x{ny} vertices, {substeps} substeps per frame, {} frames, {timer}",
+                "\n{} on {adapter}: scene '{}', {nx}x{ny} vertices, {substeps} substeps per frame, {} timings of {} \
+                 frames per row in alternating order, {timer}",
                 backend.name,
                 scene.name,
+                args.repeats,
                 args.frames
             )?;
-            out!("  {:<22} {:>10} {:>10}  share of the whole", "row", "ms/frame", "added ms")?;
-            let whole = rows.last().map_or(1.0, |r| r.ms_per_frame).max(f64::MIN_POSITIVE);
+            out!("  {:<22} {:>10} {:>8}  {:<40} share of the whole", "row", "ms/frame", "spread", "added")?;
+            let whole = breakdown.whole_ms().max(f64::MIN_POSITIVE);
             for r in rows {
-                let share = if r.added.is_some() { r.added_ms / whole } else { r.ms_per_frame / whole };
-                let bar = "#".repeat((share.max(0.0) * 40.0).round() as usize);
+                let ms = r.ms_per_frame.median();
+                // Only a cost that stands out of the noise gets a bar and a share.
+                let share = match r.added_cost {
+                    None => Some(ms / whole),
+                    Some(d) => d.cost().map(|c| c / whole),
+                };
+                let share = share.map_or(String::new(), |s| {
+                    format!("{} {:.0}%", "#".repeat((s * 40.0).round() as usize), s * 100.0)
+                });
                 out!(
-                    "  {:<22} {:>10.3} {:>+10.3}  {bar} {:.0}%",
+                    "  {:<22} {:>10.3} {:>8.3}  {:<40} {share}",
                     r.label(),
-                    r.ms_per_frame,
-                    r.added_ms,
-                    share * 100.0
+                    ms,
+                    r.ms_per_frame.spread(),
+                    r.added_text()
                 )?;
+                let (verdict, added_ms, (low, high)) = match r.added_cost {
+                    None => ("", String::new(), (String::new(), String::new())),
+                    Some(d) => (
+                        d.verdict(),
+                        d.outside_noise().map_or(String::new(), |c| format!("{c:.6}")),
+                        (format!("{:.6}", d.range().0), format!("{:.6}", d.range().1)),
+                    ),
+                };
                 csv += &format!(
-                    "{},\"{}\",{nx}x{ny},{substeps},{},{},{:.6},{:.6},{timer}\n",
+                    "{},\"{}\",{nx}x{ny},{substeps},{},{},{},{},{ms:.6},{:.6},{verdict},{added_ms},{low},{high},{timer}\n",
                     backend.name,
                     adapter.replace('"', "'"),
+                    args.frames,
+                    args.repeats,
                     r.label(),
                     r.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
-                    r.ms_per_frame,
-                    r.added_ms
+                    r.ms_per_frame.spread()
                 );
             }
+            out!(
+                "  ms/frame: the median of the timings; spread: their interquartile range; added: the median of the \
+                 paired differences with the row above where their middle half is above zero, else the range of that \
+                 middle half (inside the noise)"
+            )?;
         }
     }
     if measured == 0 {

@@ -205,6 +205,8 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
         "4,scaled",
         "--frames",
         "2",
+        "--repeats",
+        "3",
         "--csv",
         csv.to_str().unwrap(),
     ]);
@@ -231,6 +233,11 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
         let gpu = !r[0].starts_with("cpu");
         assert_eq!(r[column("gpu_ms_per_frame")].is_empty(), !gpu, "{r:?}");
         assert_eq!(r[column("ceiling_fraction")].is_empty(), !gpu, "{r:?}");
+        // Each row's times are medians of three timings, with their spread.
+        assert_eq!(r[column("repeats")], "3", "{r:?}");
+        assert_eq!(r[column("gpu_ms_spread")].is_empty(), !gpu, "{r:?}");
+        let spread: f64 = r[column("wall_ms_spread")].parse().unwrap();
+        assert!(spread >= 0.0 && spread.is_finite(), "{r:?}");
         // Tiles on a GPU; not on the CPU reference or a CPU implementation of Vulkan.
         let fused = if gpu && !r[column("adapter")].contains("Cpu") { "2" } else { "1" };
         assert_eq!(r[column("fused_substeps")], fused, "{r:?}");
@@ -254,6 +261,61 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
     let _ = std::fs::remove_file(csv);
 }
 
+/// `cloth bench --effects` times each row repeatedly and says of each added effect whether it
+/// costs, saves, or is inside the noise: never a bare negative cost. Fewer than three timings
+/// are refused, naming the flag.
+#[test]
+fn effect_costs_are_medians_with_a_verdict_on_the_noise() {
+    let out = cloth(&["bench", "--effects", "--backends", "cpu", "--grids", "16", "--repeats", "2"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("--repeats 2 is too few"), "{stderr}");
+    let csv = std::env::temp_dir().join(format!("cloth-effects-{}.csv", std::process::id()));
+    let out = cloth(&[
+        "bench",
+        "--effects",
+        "--backends",
+        "cpu",
+        "--grids",
+        "16",
+        "--frames",
+        "1",
+        "--repeats",
+        "3",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    let table = std::fs::read_to_string(&csv).expect("the CSV was written");
+    let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
+    let at = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}")) - 2;
+    let scene = cloth_core::Scene::from_ron_str(include_str!("../../../scenes/flag.ron")).unwrap();
+    let rows: Vec<Vec<&str>> =
+        table.lines().skip(1).map(|r| r.split_once("\",").expect("a quoted adapter").1.split(',').collect()).collect();
+    assert_eq!(rows.len(), 1 + scene.effects.iter().count(), "{table}");
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r[at("repeats")], "3", "{r:?}");
+        let (verdict, added, low, high) =
+            (r[at("added")], r[at("added_ms")], r[at("added_low_ms")], r[at("added_high_ms")]);
+        if k == 0 {
+            assert_eq!([verdict, added, low, high], ["", "", "", ""], "the bare row adds nothing: {r:?}");
+            continue;
+        }
+        let (low, high): (f64, f64) = (low.parse().unwrap(), high.parse().unwrap());
+        match verdict {
+            "costs" => assert!(low > 0.0 && added.parse::<f64>().unwrap() > 0.0, "{r:?}"),
+            "saves" => assert!(high < 0.0 && added.parse::<f64>().unwrap() < 0.0, "{r:?}"),
+            "inside_noise" => assert!(low <= 0.0 && high >= 0.0 && added.is_empty(), "{r:?}"),
+            other => panic!("verdict {other}: {r:?}"),
+        }
+    }
+    for line in stdout.lines().filter(|l| l.trim_start().starts_with('+')) {
+        let added = line.split_whitespace().skip(4).collect::<Vec<_>>().join(" ");
+        assert!(!added.starts_with('-') && !added.starts_with("+-"), "a negative cost printed: {line}");
+    }
+    let _ = std::fs::remove_file(csv);
+}
+
 /// `cloth bench`'s GPU tuning flags reach the backends: `--tiling on|off` chooses the tiled kernel
 /// for semi-implicit Euler on every GPU backend, whatever the device (lavapipe does not tile by
 /// default), and `--packed-state off` keeps the two `vec4`s: the CSV's fused substeps and state.
@@ -264,7 +326,19 @@ fn bench_tuning_flags_choose_the_kernels() {
     {
         let csv =
             std::env::temp_dir().join(format!("cloth-bench-{}-{}-{}.csv", flags[0], flags[1], std::process::id()));
-        let mut args = vec!["bench", "--backends", "wgpu,vulkano", "--grids", "40", "--substeps", "4", "--frames", "1"];
+        let mut args = vec![
+            "bench",
+            "--backends",
+            "wgpu,vulkano",
+            "--grids",
+            "40",
+            "--substeps",
+            "4",
+            "--frames",
+            "1",
+            "--repeats",
+            "1",
+        ];
         args.extend(flags);
         args.extend(["--csv", csv.to_str().unwrap()]);
         let out = cloth(&args);

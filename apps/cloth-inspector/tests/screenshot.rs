@@ -81,7 +81,7 @@ fn screenshot_shows_the_cloth_over_the_sphere_on_every_backend() {
 
 /// `--measure-effects`: the stats panel's per-effect breakdown is measured in the background at
 /// start, and a headless run waits for it and prints it: a row for the bare cloth and one for each
-/// effect of the scene, with positive times.
+/// effect of the scene, with positive median times and added costs that are never negative.
 #[test]
 fn the_effect_cost_breakdown_is_measured_and_shown() {
     if !has_xvfb() {
@@ -111,8 +111,13 @@ fn the_effect_cost_breakdown_is_measured_and_shown() {
         assert!(row.contains(&format!("{effect:?}")), "row for {effect:?}: {row}");
     }
     for row in &rows {
-        let ms: f64 = row.split_whitespace().rev().nth(3).and_then(|x| x.parse().ok()).expect("a time");
+        let words: Vec<&str> = row.split_whitespace().collect();
+        let at = words.iter().position(|w| *w == "ms/frame").expect("ms/frame");
+        let ms: f64 = words[at - 1].parse().expect("a time before ms/frame");
         assert!(ms > 0.0 && ms.is_finite(), "{row}");
+        // An added cost is a cost, a saving or inside the noise: never a negative number.
+        let added = row.split("added ").nth(1).expect("an added column");
+        assert!(!added.starts_with('-') && !added.starts_with("+-"), "{row}");
     }
     let _ = std::fs::remove_file(out);
 }

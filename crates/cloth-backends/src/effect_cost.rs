@@ -7,12 +7,17 @@
 //! the whole scene), so a row differs from the one before only by the code of one effect.
 //! Absent effects are compiled out of the kernels (see `shaders/`), which is what makes the
 //! bare row cheaper; the cost of an effect is the difference between its row and the one before.
+//!
+//! Each row is timed [`crate::timing::DEFAULT_REPEATS`] times (or as many as asked), the rows in alternating
+//! order, and an effect's cost is read from the paired differences of its row and the one
+//! before ([`crate::timing`]): a cost where they agree, else "inside the noise" with its range.
 
 use std::time::Instant;
 
 use cloth_core::{Effect, EffectSet, Scene, SimError, Substeps, stability};
 
 use crate::Backend;
+use crate::timing::{Difference, Samples};
 
 /// One row of the breakdown.
 #[derive(Clone, Debug, PartialEq)]
@@ -21,14 +26,14 @@ pub struct EffectCost {
     pub added: Option<Effect>,
     /// The effects this row simulates.
     pub effects: EffectSet,
-    /// Cost of one frame, ms: GPU execution time where the backend has timestamps, else wall
-    /// clock to the end of the work. The least of [`REPEATS`] timings (the least disturbed).
-    pub ms_per_frame: f64,
+    /// Cost of one frame, ms, once per repeat: GPU execution time where the backend has
+    /// timestamps, else wall clock to the end of the work.
+    pub ms_per_frame: Samples,
     /// Whether `ms_per_frame` is GPU time (timestamps) rather than wall clock.
     pub gpu_timed: bool,
-    /// `ms_per_frame` minus the previous row's: what this effect costs, ms per frame (0 for the
-    /// bare row). Differences below the timing noise can come out slightly negative.
-    pub added_ms: f64,
+    /// What this effect costs over the previous row, from the paired differences of the two
+    /// rows' timings (`None` for the bare row): a cost, a saving, or inside the noise.
+    pub added_cost: Option<Difference>,
 }
 
 impl EffectCost {
@@ -39,6 +44,12 @@ impl EffectCost {
             Some(e) => format!("+ {e:?}"),
         }
     }
+
+    /// The added cost in words (`+1.234 ms`, `inside the noise (...)`, `saves ...`), or `—` for
+    /// the bare row.
+    pub fn added_text(&self) -> String {
+        self.added_cost.map_or("—".to_string(), |d| d.describe("ms"))
+    }
 }
 
 /// The breakdown of one scene on one backend.
@@ -48,6 +59,10 @@ pub struct Breakdown {
     pub adapter: String,
     /// Substeps per frame of every row.
     pub substeps: u32,
+    /// Frames of each timing.
+    pub frames: u32,
+    /// Timings of each row, taken in alternating order.
+    pub repeats: u32,
     /// The bare cloth, then each effect added.
     pub rows: Vec<EffectCost>,
 }
@@ -57,10 +72,16 @@ impl Breakdown {
     pub fn timer(&self) -> &'static str {
         if !self.rows.is_empty() && self.rows.iter().all(|r| r.gpu_timed) { "GPU timestamps" } else { "wall clock" }
     }
+
+    /// Median ms per frame of the whole scene (the last row).
+    pub fn whole_ms(&self) -> f64 {
+        self.rows.last().map_or(0.0, |r| r.ms_per_frame.median())
+    }
 }
 
-/// Timings of each row; the least is kept.
-pub const REPEATS: u32 = 3;
+/// The fewest timings a row may have: with fewer, the middle half of the paired differences is
+/// one difference and a single disturbed timing decides the verdict.
+pub const MIN_REPEATS: u32 = 3;
 
 /// The rows `measure` runs for `scene`: none, then each of its effects added in turn.
 pub fn steps(scene: &Scene) -> Vec<(Option<Effect>, EffectSet)> {
@@ -90,48 +111,77 @@ pub fn row_scene(scene: &Scene, effects: EffectSet) -> Scene {
 }
 
 /// Times `frames` frames of each row of [`steps`] on `backend` (laid out as `tuning` says),
-/// calling `progress(done, total)` after each row.
+/// `repeats` times, in alternating order: forward through the rows, then backward, and so on, so
+/// a slow spell of the device falls on neighbouring rows alike and cancels in their difference.
+/// Every row's simulator is created (and warmed up) first and kept for all the repeats.
+/// `progress(done, total)` is called after each timing.
 ///
 /// # Errors
-/// The first [`SimError`] of a row: the backend unavailable, the scene refused, a device error.
+/// [`SimError::InvalidOption`] for `repeats` below [`MIN_REPEATS`] or `frames` of 0; else the
+/// first [`SimError`] of a row: the backend unavailable, the scene refused, a device error.
 pub fn measure(
     scene: &Scene,
     backend: &Backend,
     tuning: &cloth_gpu::GpuTuning,
     frames: u32,
+    repeats: u32,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Breakdown, SimError> {
+    if repeats < MIN_REPEATS {
+        return Err(SimError::InvalidOption {
+            option: "repeats",
+            value: repeats.to_string(),
+            expected: format!("at least {MIN_REPEATS} timings of each row, to tell an effect's cost from noise"),
+        });
+    }
+    if frames == 0 {
+        return Err(SimError::InvalidOption {
+            option: "frames",
+            value: "0".to_string(),
+            expected: "at least one frame per timing".to_string(),
+        });
+    }
     let steps = steps(scene);
     let mut adapter_name = String::new();
-    let frames = frames.max(1);
-    let mut rows: Vec<EffectCost> = Vec::with_capacity(steps.len());
-    for (k, (added, effects)) in steps.iter().enumerate() {
+    let mut sims = Vec::with_capacity(steps.len());
+    for (_, effects) in &steps {
         let mut sim = (backend.create)(&row_scene(scene, *effects), tuning)?;
         adapter_name = sim.adapter_name();
         // Warm-up: pipeline compilation and first-use allocations, then wait for it.
         sim.advance(1)?;
         sim.diagnostics()?;
         let gpu_timed = sim.set_gpu_timing(true);
-        let mut best = f64::INFINITY;
-        for _ in 0..REPEATS {
+        sims.push((sim, gpu_timed));
+    }
+    let total = steps.len() * repeats as usize;
+    let mut timings = vec![Vec::with_capacity(repeats as usize); steps.len()];
+    let mut done = 0;
+    for r in 0..repeats as usize {
+        let order: Vec<usize> = if r % 2 == 0 { (0..steps.len()).collect() } else { (0..steps.len()).rev().collect() };
+        for k in order {
+            let (sim, gpu_timed) = &mut sims[k];
             let start = Instant::now();
             sim.advance(frames)?;
             let seconds = match sim.take_gpu_seconds()? {
-                Some(s) if gpu_timed => s,
+                Some(s) if *gpu_timed => s,
                 _ => {
                     // The wall clock to the end of the work: diagnostics waits for the device.
                     sim.diagnostics()?;
                     start.elapsed().as_secs_f64()
                 }
             };
-            best = best.min(seconds);
+            timings[k].push(seconds * 1e3 / frames as f64);
+            done += 1;
+            progress(done, total);
         }
-        let ms_per_frame = best * 1e3 / frames as f64;
-        let added_ms = rows.last().map_or(0.0, |previous| ms_per_frame - previous.ms_per_frame);
-        rows.push(EffectCost { added: *added, effects: *effects, ms_per_frame, gpu_timed, added_ms });
-        progress(k + 1, steps.len());
     }
-    Ok(Breakdown { adapter: adapter_name, substeps: substeps(scene), rows })
+    let mut rows: Vec<EffectCost> = Vec::with_capacity(steps.len());
+    for (((added, effects), (_, gpu_timed)), times) in steps.iter().zip(&sims).zip(timings) {
+        let ms_per_frame = Samples::new(times);
+        let added_cost = rows.last().map(|previous| Difference::of(&ms_per_frame.paired_minus(&previous.ms_per_frame)));
+        rows.push(EffectCost { added: *added, effects: *effects, ms_per_frame, gpu_timed: *gpu_timed, added_cost });
+    }
+    Ok(Breakdown { adapter: adapter_name, substeps: substeps(scene), frames, repeats, rows })
 }
 
 #[cfg(test)]
@@ -152,24 +202,31 @@ mod tests {
     }
 
     #[test]
-    fn the_cpu_breakdown_has_a_timed_row_per_effect() {
+    fn the_cpu_breakdown_times_every_row_repeatedly() {
         let mut scene = Scene::default();
         scene.cloth.resolution = [24, 24];
         scene.time.substeps = Substeps::Fixed(8);
         let cpu = crate::find("cpu").unwrap();
-        let mut calls = 0;
-        let breakdown = measure(&scene, &cpu, &Default::default(), 4, |done, total| {
-            calls += 1;
-            assert!(done <= total);
-        })
-        .unwrap();
+        let mut calls = Vec::new();
+        let breakdown =
+            measure(&scene, &cpu, &Default::default(), 2, 3, |done, total| calls.push((done, total))).unwrap();
         let rows = &breakdown.rows;
-        assert_eq!((breakdown.substeps, breakdown.timer()), (8, "wall clock"));
-        assert_eq!((rows.len(), calls), (steps(&scene).len(), rows.len()));
+        assert_eq!((breakdown.substeps, breakdown.repeats, breakdown.timer()), (8, 3, "wall clock"));
+        let timings = steps(&scene).len() * 3;
+        assert_eq!(calls, (1..=timings).map(|k| (k, timings)).collect::<Vec<_>>());
         // Timings themselves are the benchmark's to print, not a test's to assert.
-        assert!(rows.iter().all(|r| r.ms_per_frame > 0.0 && r.ms_per_frame.is_finite() && !r.gpu_timed), "{rows:?}");
-        assert_eq!(rows[0].added_ms, 0.0);
+        assert!(rows.iter().all(|r| r.ms_per_frame.len() == 3 && r.ms_per_frame.median() > 0.0 && !r.gpu_timed));
+        assert!(rows[0].added_cost.is_none() && rows[1..].iter().all(|r| r.added_cost.is_some()), "{rows:?}");
         let (first, last) = (rows[1].effects, rows.last().unwrap().effects);
         assert_eq!((first.iter().count(), last), (1, scene.effects));
+    }
+
+    #[test]
+    fn too_few_repeats_or_no_frames_are_refused() {
+        let cpu = crate::find("cpu").unwrap();
+        for (frames, repeats) in [(2, 2), (0, 5)] {
+            let e = measure(&Scene::default(), &cpu, &Default::default(), frames, repeats, |_, _| {}).unwrap_err();
+            assert!(matches!(e, SimError::InvalidOption { .. }), "{e}");
+        }
     }
 }

@@ -7,6 +7,7 @@
 
 pub mod effect_cost;
 pub mod throughput;
+pub mod timing;
 
 use cloth_core::{CpuSimulator, CpuSimulatorF64, Scene, SimError, Simulator};
 pub use cloth_gpu::bandwidth::CopyBandwidth;

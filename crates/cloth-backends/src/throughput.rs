@@ -8,6 +8,7 @@ use cloth_core::scene::Substeps;
 use cloth_core::{Scene, SimError};
 
 use crate::Backend;
+use crate::timing::Samples;
 
 /// The bytes per vertex a force-based substep moves at least in the layout the backends share:
 /// read its position and velocity (two 16-byte `vec4`s) and write them (two more). Everything
@@ -95,15 +96,25 @@ pub struct ThroughputRow {
     pub substeps: u32,
     /// Substep length, s.
     pub substep_dt: f64,
-    /// Frames timed.
+    /// Frames of each timing.
     pub frames: u32,
-    /// GPU time per frame from timestamp queries, ms (`None` without a GPU timer).
+    /// Timings of `frames` frames each; the times below are their medians
+    /// ([`crate::timing`]).
+    pub repeats: u32,
+    /// GPU time per frame from timestamp queries, ms, the median of the repeats (`None` without
+    /// a GPU timer).
     pub gpu_ms_per_frame: Option<f64>,
-    /// Host time per frame spent in `advance` (recording and submitting), ms.
+    /// Spread (interquartile range) of the GPU time per frame over the repeats, ms.
+    pub gpu_ms_spread: Option<f64>,
+    /// Host time per frame spent in `advance` (recording and submitting), ms, the median.
     pub cpu_ms_per_frame: f64,
-    /// Wall-clock time per frame from the first `advance` to the end of the work, ms.
+    /// Wall-clock time per frame from a timing's first `advance` to the end of its work, ms,
+    /// the median.
     pub wall_ms_per_frame: f64,
-    /// Vertex-substeps per second, from the GPU time where there is one, else the wall clock.
+    /// Spread (interquartile range) of the wall-clock time per frame over the repeats, ms.
+    pub wall_ms_spread: f64,
+    /// Vertex-substeps per second, from the median GPU time where there is one, else the wall
+    /// clock's.
     pub vertex_substeps_per_s: f64,
     /// Command submissions per frame.
     pub submissions_per_frame: f64,
@@ -128,48 +139,66 @@ impl ThroughputRow {
     }
 }
 
-/// Measures one row: one warm-up frame (pipelines, first-use allocations), then `frames` frames
-/// each advanced by its own `advance(1)` (one submission, no wait), with GPU timing on where the
-/// backend has it, then one wait for the device. A GPU backend lays its work out as `tuning`
-/// says.
+/// Measures one row: one warm-up frame (pipelines, first-use allocations), then `repeats`
+/// timings of `frames` frames, each frame advanced by its own `advance(1)` (one submission, no
+/// wait) with GPU timing on where the backend has it, and each timing ended by one wait for
+/// the device. A GPU backend lays its work out as `tuning` says.
 ///
 /// # Errors
-/// What creating or running the simulator returns (e.g. [`SimError::Unavailable`] without an
-/// adapter, [`SimError::TooLarge`] for a grid the device cannot hold).
+/// [`SimError::InvalidOption`] for `frames` or `repeats` of 0; else what creating or running
+/// the simulator returns (e.g. [`SimError::Unavailable`] without an adapter,
+/// [`SimError::TooLarge`] for a grid the device cannot hold).
 pub fn measure(
     backend: &Backend,
     tuning: &cloth_gpu::GpuTuning,
     n: u32,
     rule: StepRule,
     frames: u32,
+    repeats: u32,
 ) -> Result<ThroughputRow, SimError> {
+    for (option, value) in [("frames", frames), ("repeats", repeats)] {
+        if value == 0 {
+            return Err(SimError::InvalidOption { option, value: "0".to_string(), expected: "at least 1".to_string() });
+        }
+    }
     let scene = bench_scene(n, rule);
-    let frames = frames.max(1);
     let mut sim = (backend.create)(&scene, tuning)?;
     sim.advance(1)?;
     sim.diagnostics()?;
     let gpu_timed = sim.set_gpu_timing(true);
     let (mut submissions, mut waits) = (0u64, 0u64);
-    let mut host = 0.0;
-    let start = Instant::now();
-    for _ in 0..frames {
-        let t = Instant::now();
-        sim.advance(1)?;
-        host += t.elapsed().as_secs_f64();
-        let counts = sim.last_advance_counts();
-        submissions += counts.submissions as u64;
-        waits += counts.host_waits as u64;
-    }
-    // One wait at the end, so the wall clock covers the work and not only its submission.
-    let gpu_seconds = if gpu_timed { sim.take_gpu_seconds()? } else { None };
-    sim.diagnostics()?;
-    let wall = start.elapsed().as_secs_f64();
-    if submissions > 0 {
-        waits += 1;
+    let f = frames as f64;
+    let (mut gpu, mut host, mut wall) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..repeats {
+        let mut host_s = 0.0;
+        let start = Instant::now();
+        for _ in 0..frames {
+            let t = Instant::now();
+            sim.advance(1)?;
+            host_s += t.elapsed().as_secs_f64();
+            let counts = sim.last_advance_counts();
+            submissions += counts.submissions as u64;
+            waits += counts.host_waits as u64;
+        }
+        // One wait at the end, so the wall clock covers the work and not only its submission.
+        let gpu_seconds = if gpu_timed { sim.take_gpu_seconds()? } else { None };
+        sim.diagnostics()?;
+        wall.push(start.elapsed().as_secs_f64() * 1e3 / f);
+        host.push(host_s * 1e3 / f);
+        if submissions > 0 {
+            waits += 1;
+        }
+        if let Some(s) = gpu_seconds {
+            gpu.push(s * 1e3 / f);
+        }
     }
     let finite = sim.read_state()?.non_finite_count() == 0;
-    let f = frames as f64;
-    let work = n as f64 * n as f64 * scene.substeps_per_frame() as f64 * f;
+    // GPU time only where every timing had it.
+    let gpu = (gpu.len() == repeats as usize).then(|| Samples::new(gpu));
+    let (host, wall) = (Samples::new(host), Samples::new(wall));
+    let ms_per_frame = gpu.as_ref().map_or(wall.median(), Samples::median);
+    let work_per_frame = n as f64 * n as f64 * scene.substeps_per_frame() as f64;
+    let timed_frames = f * repeats as f64;
     Ok(ThroughputRow {
         backend: backend.name.to_string(),
         adapter: sim.adapter_name(),
@@ -178,12 +207,15 @@ pub fn measure(
         substeps: scene.substeps_per_frame(),
         substep_dt: scene.substep_dt(),
         frames,
-        gpu_ms_per_frame: gpu_seconds.map(|s| s * 1e3 / f),
-        cpu_ms_per_frame: host * 1e3 / f,
-        wall_ms_per_frame: wall * 1e3 / f,
-        vertex_substeps_per_s: work / gpu_seconds.unwrap_or(wall),
-        submissions_per_frame: submissions as f64 / f,
-        host_waits_per_frame: waits as f64 / f,
+        repeats,
+        gpu_ms_per_frame: gpu.as_ref().map(Samples::median),
+        gpu_ms_spread: gpu.as_ref().map(Samples::spread),
+        cpu_ms_per_frame: host.median(),
+        wall_ms_per_frame: wall.median(),
+        wall_ms_spread: wall.spread(),
+        vertex_substeps_per_s: work_per_frame / (ms_per_frame * 1e-3),
+        submissions_per_frame: submissions as f64 / timed_frames,
+        host_waits_per_frame: waits as f64 / timed_frames,
         fused_substeps: sim.fused_substeps(),
         state_bytes: sim.substep_state_bytes(),
         finite,
@@ -217,8 +249,9 @@ mod tests {
     #[test]
     fn a_cpu_row_counts_the_work_and_no_device_traffic() {
         let cpu = crate::find("cpu").unwrap();
-        let row = measure(&cpu, &Default::default(), 16, StepRule::Fixed(4), 3).unwrap();
-        assert_eq!((row.grid, row.substeps, row.frames), (16, 4, 3));
+        let row = measure(&cpu, &Default::default(), 16, StepRule::Fixed(4), 3, 4).unwrap();
+        assert_eq!((row.grid, row.substeps, row.frames, row.repeats), (16, 4, 3, 4));
+        assert!(row.wall_ms_spread >= 0.0 && row.gpu_ms_spread.is_none());
         assert!(row.finite && row.gpu_ms_per_frame.is_none());
         assert_eq!((row.submissions_per_frame, row.host_waits_per_frame), (0.0, 0.0));
         assert!(row.vertex_substeps_per_s > 0.0 && row.wall_ms_per_frame >= row.cpu_ms_per_frame * 0.5);

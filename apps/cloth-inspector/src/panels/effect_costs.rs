@@ -8,8 +8,11 @@ use cloth_backends::effect_cost::{self, Breakdown};
 use cloth_core::Scene;
 use eframe::egui;
 
-/// Frames timed per row (the least of `effect_cost::REPEATS` timings is kept).
+/// Frames of each timing.
 const FRAMES: u32 = 10;
+
+/// Timings of each row, in alternating order (`cloth_backends::timing`).
+const REPEATS: u32 = cloth_backends::timing::DEFAULT_REPEATS;
 
 /// Progress shared with the background thread.
 #[derive(Clone, Debug, Default)]
@@ -35,7 +38,7 @@ impl EffectCostsPanel {
         let (shared, scene, name, tuning) = (progress.clone(), scene.clone(), backend.to_string(), tuning.clone());
         std::thread::spawn(move || {
             let result = cloth_backends::find(&name).and_then(|b| {
-                effect_cost::measure(&scene, &b, &tuning, FRAMES, |done, total| {
+                effect_cost::measure(&scene, &b, &tuning, FRAMES, REPEATS, |done, total| {
                     if let Ok(mut p) = shared.lock() {
                         (p.done, p.total) = (done, total);
                     }
@@ -60,13 +63,20 @@ impl EffectCostsPanel {
         let mut lines: Vec<String> = self.message.iter().map(|m| format!("effect costs failed: {m}")).collect();
         if let Some((breakdown, _, backend)) = &self.last {
             lines.push(format!(
-                "effect costs on {backend} ({}, {} substeps per frame, {}):",
+                "effect costs on {backend} ({}, {} substeps per frame, median of {} timings, {}):",
                 breakdown.adapter,
                 breakdown.substeps,
+                breakdown.repeats,
                 breakdown.timer()
             ));
             for r in &breakdown.rows {
-                lines.push(format!("  {:<22} {:>10.3} ms/frame {:>+10.3} ms", r.label(), r.ms_per_frame, r.added_ms));
+                lines.push(format!(
+                    "  {:<22} {:>10.3} ms/frame (spread {:.3})  added {}",
+                    r.label(),
+                    r.ms_per_frame.median(),
+                    r.ms_per_frame.spread(),
+                    r.added_text()
+                ));
             }
         }
         lines
@@ -80,7 +90,8 @@ impl EffectCostsPanel {
             .add_enabled(idle, button)
             .on_hover_text(format!(
                 "Times {FRAMES} frames of this scene on {backend} with no effect, then with each of its effects \
-                 added in turn (in the background; GPU timestamps where the backend has them)"
+                 added in turn, {REPEATS} times in alternating order (in the background; GPU timestamps where the \
+                 backend has them). A cost is shown where the paired timings agree on it, else as inside the noise"
             ))
             .clicked()
         {
@@ -88,8 +99,8 @@ impl EffectCostsPanel {
         }
         if let Some(progress) = &self.running {
             let p = progress.lock().map(|p| p.clone()).unwrap_or_default();
-            let total = p.total.max(effect_cost::steps(scene).len());
-            ui.add(egui::ProgressBar::new(p.done as f32 / total as f32).text(format!("{} / {total} rows", p.done)));
+            let total = p.total.max(effect_cost::steps(scene).len() * REPEATS as usize);
+            ui.add(egui::ProgressBar::new(p.done as f32 / total as f32).text(format!("{} / {total} timings", p.done)));
             match p.result {
                 Some(Ok(breakdown)) => {
                     self.last = Some((breakdown, scene.clone(), backend.to_string()));
@@ -112,9 +123,10 @@ impl EffectCostsPanel {
         let [nx, ny] = measured_scene.cloth.resolution;
         ui.label(
             egui::RichText::new(format!(
-                "{measured_backend} on {}: {nx}x{ny}, {} substeps per frame, {}",
+                "{measured_backend} on {}: {nx}x{ny}, {} substeps per frame, median of {} timings, {}",
                 breakdown.adapter,
                 breakdown.substeps,
+                breakdown.repeats,
                 breakdown.timer()
             ))
             .small(),
@@ -122,16 +134,28 @@ impl EffectCostsPanel {
         if measured_scene != scene || measured_backend != backend {
             ui.label(egui::RichText::new("the scene or backend changed since: measure again").small().weak());
         }
-        let whole = breakdown.rows.last().map_or(1.0, |r| r.ms_per_frame).max(f64::MIN_POSITIVE);
+        let whole = breakdown.whole_ms().max(f64::MIN_POSITIVE);
         egui::Grid::new("effect costs").num_columns(3).striped(true).show(ui, |ui| {
             for row in &breakdown.rows {
-                let (ms, text) = match row.added {
-                    None => (row.ms_per_frame, format!("{:.3} ms", row.ms_per_frame)),
-                    Some(_) => (row.added_ms, format!("{:+.3} ms", row.added_ms)),
+                let median = row.ms_per_frame.median();
+                // Only a time or a cost that stands out of the noise gets a bar.
+                let (bar, text, noise) = match row.added_cost {
+                    None => (Some(median), format!("{median:.3} ms"), false),
+                    Some(d) => (d.cost(), d.describe("ms"), d.cost().is_none()),
                 };
                 ui.label(row.label());
-                ui.add(egui::ProgressBar::new((ms / whole).clamp(0.0, 1.0) as f32).desired_width(110.0));
-                ui.label(text);
+                match bar {
+                    Some(ms) => {
+                        ui.add(egui::ProgressBar::new((ms / whole).clamp(0.0, 1.0) as f32).desired_width(110.0))
+                    }
+                    None => ui.label(""),
+                };
+                let text = egui::RichText::new(text);
+                ui.label(if noise { text.weak() } else { text }).on_hover_text(format!(
+                    "row: median {median:.3} ms per frame, spread (interquartile range) {:.3} ms over {} timings",
+                    row.ms_per_frame.spread(),
+                    row.ms_per_frame.len()
+                ));
                 ui.end_row();
             }
             ui.label("whole scene");
