@@ -116,7 +116,7 @@ fn the_effect_cost_breakdown_is_measured_and_shown() {
         let ms: f64 = words[at - 1].parse().expect("a time before ms/frame");
         assert!(ms > 0.0 && ms.is_finite(), "{row}");
         // An added cost is a cost, a saving or inside the noise: never a negative number.
-        let added = row.split("added ").nth(1).expect("an added column");
+        let added = row.split("| ").nth(1).expect("an added column");
         assert!(!added.starts_with('-') && !added.starts_with("+-"), "{row}");
     }
     let _ = std::fs::remove_file(out);

@@ -71,7 +71,7 @@ impl EffectCostsPanel {
             ));
             for r in &breakdown.rows {
                 lines.push(format!(
-                    "  {:<22} {:>10.3} ms/frame (spread {:.3})  added {}",
+                    "  {:<22} {:>10.3} ms/frame (spread {:.3}) | {}",
                     r.label(),
                     r.ms_per_frame.median(),
                     r.ms_per_frame.spread(),
@@ -141,7 +141,7 @@ impl EffectCostsPanel {
                 // Only a time or a cost that stands out of the noise gets a bar.
                 let (bar, text, noise) = match row.added_cost {
                     None => (Some(median), format!("{median:.3} ms"), false),
-                    Some(d) => (d.cost(), d.describe("ms"), d.cost().is_none()),
+                    Some(d) => (d.cost(), d.describe("ms"), d.outside_noise().is_none()),
                 };
                 ui.label(row.label());
                 match bar {
