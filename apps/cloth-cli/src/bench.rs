@@ -10,7 +10,7 @@ use cloth_backends::effect_cost;
 use cloth_backends::throughput::{
     self, MIN_BYTES_PER_VERTEX_SUBSTEP, PACKED_BYTES_PER_VERTEX_SUBSTEP, StepRule, ThroughputRow,
 };
-use cloth_core::budget::WorkBudget;
+use cloth_core::budget::WorkPlan;
 use cloth_core::{Scene, SimError, Substeps};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -55,19 +55,57 @@ pub struct BenchArgs {
 /// The default scene of `--effects`: every effect at once (a copy of `scenes/flag.ron`).
 const FLAG_SCENE: &str = include_str!("../../../scenes/flag.ron");
 
-pub fn run(args: BenchArgs) -> Result<()> {
-    let all = backends::all();
-    let chosen: Vec<&backends::Backend> = if args.backends.is_empty() {
-        all.iter().filter(|b| b.name != "cpu-f64").collect()
-    } else {
-        args.backends
+/// One row `cloth bench` will time, or the reason it is refused (it does not fit its
+/// backend's budget alone).
+pub(crate) struct PlannedRow {
+    backend: usize,
+    n: u32,
+    rule: StepRule,
+    refused: Option<cloth_core::Problem>,
+}
+
+/// One breakdown `cloth bench --effects` will measure: the scene resized to a grid, or the
+/// reason it is refused.
+pub(crate) struct PlannedBreakdown {
+    backend: usize,
+    n: u32,
+    scene: Scene,
+    refused: Option<cloth_core::Problem>,
+}
+
+/// What `cloth bench` will run, decided before anything runs: the backends, each row (or
+/// breakdown) with its refusal if it does not fit its budget alone, and the work of all of them,
+/// which must fit the budgets together.
+pub(crate) struct Plan {
+    backends: Vec<backends::Backend>,
+    rows: Vec<PlannedRow>,
+    breakdowns: Vec<PlannedBreakdown>,
+    pub(crate) work: WorkPlan,
+}
+
+impl Plan {
+    /// Why each refused row or breakdown is refused.
+    #[cfg(test)]
+    pub(crate) fn refusals(&self) -> impl Iterator<Item = &cloth_core::Problem> {
+        self.rows
             .iter()
-            .map(|n| all.iter().find(|b| b.name == n).with_context(|| format!("unknown backend '{n}'")))
-            .collect::<Result<_>>()?
-    };
-    if let Some(path) = &args.csv {
-        crate::output::check_writable(path)?;
+            .filter_map(|r| r.refused.as_ref())
+            .chain(self.breakdowns.iter().filter_map(|b| b.refused.as_ref()))
     }
+}
+
+/// The plan of `args`.
+///
+/// # Errors
+/// An unknown backend, too few repeats for `--effects`, an invalid scene, or rows that together
+/// exceed a budget.
+pub(crate) fn plan(args: &BenchArgs) -> Result<Plan> {
+    let chosen: Vec<backends::Backend> = if args.backends.is_empty() {
+        backends::all().into_iter().filter(|b| b.name != "cpu-f64").collect()
+    } else {
+        args.backends.iter().map(|n| backends::find(n).map_err(anyhow::Error::msg)).collect::<Result<_>>()?
+    };
+    let mut plan = Plan { backends: Vec::new(), rows: Vec::new(), breakdowns: Vec::new(), work: WorkPlan::default() };
     if args.effects {
         if args.repeats < effect_cost::MIN_REPEATS {
             anyhow::bail!(
@@ -78,17 +116,69 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 effect_cost::MIN_REPEATS
             );
         }
-        return effects(&args, &chosen);
-    }
-    let rules = if args.substeps.is_empty() {
-        vec![StepRule::Fixed(16), StepRule::Fixed(64), StepRule::Scaled]
+        let base = match &args.scene {
+            Some(path) => Scene::load(path).with_context(|| format!("cannot use scene {}", path.display()))?,
+            None => Scene::from_ron_str(FLAG_SCENE).context("the built-in flag scene")?,
+        };
+        for (k, backend) in chosen.iter().enumerate() {
+            for &n in &args.grids {
+                let mut scene = base.clone();
+                // Square cells: the longer side gets `n` vertices.
+                let [w, h] = scene.cloth.size;
+                scene.cloth.resolution = if w >= h {
+                    [n, ((n as f64 * h / w).round() as u32).max(2)]
+                } else {
+                    [((n as f64 * w / h).round() as u32).max(2), n]
+                };
+                match args.substeps.as_slice() {
+                    [] => {}
+                    [StepRule::Fixed(k)] => scene.time.substeps = Substeps::Fixed(*k),
+                    _ => anyhow::bail!("--effects takes one number of substeps (or none: the scene's own)"),
+                }
+                scene.validate().with_context(|| format!("the scene '{}' at grid {n}", scene.name))?;
+                // Each row's warm-up and timed frames, over every row.
+                let rows = effect_cost::steps(&scene).len() as u32;
+                let frames = args.frames.saturating_mul(args.repeats).saturating_add(1).saturating_mul(rows);
+                let refused = plan.work.add(backend.name, &scene, frames).err();
+                plan.breakdowns.push(PlannedBreakdown { backend: k, n, scene, refused });
+            }
+        }
     } else {
-        args.substeps.clone()
-    };
+        let rules = if args.substeps.is_empty() {
+            vec![StepRule::Fixed(16), StepRule::Fixed(64), StepRule::Scaled]
+        } else {
+            args.substeps.clone()
+        };
+        for (k, backend) in chosen.iter().enumerate() {
+            for &n in &args.grids {
+                for &rule in &rules {
+                    // The warm-up frame and the timed ones.
+                    let frames = args.frames.saturating_mul(args.repeats).saturating_add(1);
+                    let refused = plan.work.add(backend.name, &throughput::bench_scene(n, rule), frames).err();
+                    plan.rows.push(PlannedRow { backend: k, n, rule, refused });
+                }
+            }
+        }
+    }
+    plan.work
+        .check("--grids", "time fewer rows (--grids, --substeps, --backends), fewer --frames or --repeats")
+        .map_err(anyhow::Error::msg)?;
+    plan.backends = chosen;
+    Ok(plan)
+}
+
+pub fn run(args: BenchArgs) -> Result<()> {
+    let plan = plan(&args)?;
+    if let Some(path) = &args.csv {
+        crate::output::check_writable(path)?;
+    }
+    if args.effects {
+        return effects(&args, &plan);
+    }
     // The ceiling: the device's copy bandwidth, measured by the copy kernel of the first GPU
     // backend listed, at the least a substep must move per vertex.
     let tuning = args.tuning.tuning();
-    let measured_by = chosen.iter().find_map(|b| b.copy_bandwidth.map(|measure| (b.name, measure)));
+    let measured_by = plan.backends.iter().find_map(|b| b.copy_bandwidth.map(|measure| (b.name, measure)));
     let bandwidth = match measured_by.map(|(name, measure)| (name, measure(&tuning))) {
         Some((name, Ok(b))) => {
             out!(
@@ -131,73 +221,66 @@ pub fn run(args: BenchArgs) -> Result<()> {
         "sub/w",
         "finite"
     )?;
-    let per_backend = (args.grids.len() * rules.len()) as u64;
-    let bar = ProgressBar::new(chosen.len() as u64 * per_backend).with_style(
+    let bar = ProgressBar::new(plan.rows.len() as u64).with_style(
         ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} rows")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut rows: Vec<ThroughputRow> = Vec::new();
     let mut adapters: Vec<String> = Vec::new();
-    'backends: for backend in &chosen {
-        for &n in &args.grids {
-            for &rule in &rules {
-                bar.set_message(format!("{} {n}² {rule}", backend.name));
-                // The warm-up frame and the timed ones, within the backend's work budget.
-                let budget = WorkBudget::for_backend(backend.name);
-                if let Err(p) = budget.check(
-                    &throughput::bench_scene(n, rule),
-                    args.frames.saturating_mul(args.repeats).saturating_add(1),
-                ) {
-                    bar.inc(1);
-                    bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {p}", backend.name, format!("{n}²")))?;
-                    continue;
-                }
-                let result = throughput::measure(backend, &tuning, n, rule, args.frames, args.repeats);
-                bar.inc(1);
-                let row = match result {
-                    Ok(row) => row,
-                    Err(SimError::Unavailable { reason, .. }) => {
-                        bar.suspend(|| out!("{:<8} skipped: {reason}", backend.name))?;
-                        bar.inc(per_backend.saturating_sub(1));
-                        continue 'backends;
-                    }
-                    Err(e) => {
-                        bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {e}", backend.name, format!("{n}²")))?;
-                        continue;
-                    }
-                };
-                let gpu = row.gpu_ms_per_frame.map_or("-".to_string(), |ms| format!("{ms:.3}"));
-                // The spread of the timer the throughput comes from.
-                let spread = format!("{:.3}", row.gpu_ms_spread.unwrap_or(row.wall_ms_spread));
-                let ceiling = match (&bandwidth, row.gpu_ms_per_frame) {
-                    (Some(b), Some(_)) => format!("{:.1}%", 100.0 * row.ceiling_fraction(b.bytes_per_s)),
-                    _ => "-".to_string(),
-                };
-                bar.suspend(|| {
-                    out!(
-                        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>8} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
-                        row.backend,
-                        format!("{n}²"),
-                        row.substeps,
-                        row.fused_substeps,
-                        row.state_bytes.map_or("-".to_string(), |b| format!("{b} B")),
-                        row.substep_dt,
-                        gpu,
-                        spread,
-                        row.cpu_ms_per_frame,
-                        row.wall_ms_per_frame,
-                        row.vertex_substeps_per_s / 1e9,
-                        ceiling,
-                        format!("{:.0}/{:.2}", row.submissions_per_frame, row.host_waits_per_frame),
-                        if row.finite { "yes" } else { "NaN" }
-                    )
-                })?;
-                if !adapters.contains(&row.adapter) {
-                    adapters.push(row.adapter.clone());
-                }
-                rows.push(row);
-            }
+    let mut unavailable = vec![false; plan.backends.len()];
+    for planned in &plan.rows {
+        let (backend, n, rule) = (&plan.backends[planned.backend], planned.n, planned.rule);
+        bar.inc(1);
+        if unavailable[planned.backend] {
+            continue;
         }
+        bar.set_message(format!("{} {n}² {rule}", backend.name));
+        if let Some(p) = &planned.refused {
+            bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {p}", backend.name, format!("{n}²")))?;
+            continue;
+        }
+        let row = match throughput::measure(backend, &tuning, n, rule, args.frames, args.repeats) {
+            Ok(row) => row,
+            Err(SimError::Unavailable { reason, .. }) => {
+                bar.suspend(|| out!("{:<8} skipped: {reason}", backend.name))?;
+                unavailable[planned.backend] = true;
+                continue;
+            }
+            Err(e) => {
+                bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {e}", backend.name, format!("{n}²")))?;
+                continue;
+            }
+        };
+        let gpu = row.gpu_ms_per_frame.map_or("-".to_string(), |ms| format!("{ms:.3}"));
+        // The spread of the timer the throughput comes from.
+        let spread = format!("{:.3}", row.gpu_ms_spread.unwrap_or(row.wall_ms_spread));
+        let ceiling = match (&bandwidth, row.gpu_ms_per_frame) {
+            (Some(b), Some(_)) => format!("{:.1}%", 100.0 * row.ceiling_fraction(b.bytes_per_s)),
+            _ => "-".to_string(),
+        };
+        bar.suspend(|| {
+            out!(
+                "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>8} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
+                row.backend,
+                format!("{n}²"),
+                row.substeps,
+                row.fused_substeps,
+                row.state_bytes.map_or("-".to_string(), |b| format!("{b} B")),
+                row.substep_dt,
+                gpu,
+                spread,
+                row.cpu_ms_per_frame,
+                row.wall_ms_per_frame,
+                row.vertex_substeps_per_s / 1e9,
+                ceiling,
+                format!("{:.0}/{:.2}", row.submissions_per_frame, row.host_waits_per_frame),
+                if row.finite { "yes" } else { "NaN" }
+            )
+        })?;
+        if !adapters.contains(&row.adapter) {
+            adapters.push(row.adapter.clone());
+        }
+        rows.push(row);
     }
     bar.finish_and_clear();
     if rows.is_empty() {
@@ -263,118 +346,94 @@ pub fn run(args: BenchArgs) -> Result<()> {
 }
 
 /// `cloth bench --effects`: the per-effect breakdown of a scene on each backend and grid.
-fn effects(args: &BenchArgs, chosen: &[&backends::Backend]) -> Result<()> {
-    let base = match &args.scene {
-        Some(path) => Scene::load(path).with_context(|| format!("cannot use scene {}", path.display()))?,
-        None => Scene::from_ron_str(FLAG_SCENE).context("the built-in flag scene")?,
-    };
+fn effects(args: &BenchArgs, plan: &Plan) -> Result<()> {
     let mut csv = String::from(
         "backend,adapter,grid,substeps,frames,repeats,row,effects,ms_per_frame,ms_spread,added,added_ms,\
          added_low_ms,added_high_ms,timer\n",
     );
     let mut measured = 0;
-    for backend in chosen {
-        for &n in &args.grids {
-            let mut scene = base.clone();
-            // Square cells: the longer side gets `n` vertices.
-            let [w, h] = scene.cloth.size;
-            scene.cloth.resolution = if w >= h {
-                [n, ((n as f64 * h / w).round() as u32).max(2)]
-            } else {
-                [((n as f64 * w / h).round() as u32).max(2), n]
-            };
-            match args.substeps.as_slice() {
-                [] => {}
-                [StepRule::Fixed(k)] => scene.time.substeps = Substeps::Fixed(*k),
-                _ => anyhow::bail!("--effects takes one number of substeps (or none: the scene's own)"),
-            }
-            scene.validate().with_context(|| format!("the scene '{}' at grid {n}", scene.name))?;
-            // Each row's warm-up and timed frames, over every row.
-            let rows = effect_cost::steps(&scene).len() as u32;
-            let frames = args.frames.saturating_mul(args.repeats).saturating_add(1).saturating_mul(rows);
-            if let Err(p) = WorkBudget::for_backend(backend.name).check(&scene, frames) {
-                out!("{:<8} {n} refused: {p}", backend.name)?;
+    let mut unavailable = vec![false; plan.backends.len()];
+    for planned in &plan.breakdowns {
+        let (backend, n, scene) = (&plan.backends[planned.backend], planned.n, &planned.scene);
+        if unavailable[planned.backend] {
+            continue;
+        }
+        if let Some(p) = &planned.refused {
+            out!("{:<8} {n} refused: {p}", backend.name)?;
+            continue;
+        }
+        let rows = effect_cost::steps(scene).len() as u32;
+        let [nx, ny] = scene.cloth.resolution;
+        let bar = ProgressBar::new(u64::from(rows) * u64::from(args.repeats)).with_style(
+            ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} timings")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar.set_message(format!("{} {nx}x{ny}", backend.name));
+        let tuning = args.tuning.tuning();
+        let breakdown = match effect_cost::measure(scene, backend, &tuning, args.frames, args.repeats, |done, _| {
+            bar.set_position(done as u64)
+        }) {
+            Ok(rows) => rows,
+            Err(SimError::Unavailable { reason, .. }) => {
+                bar.finish_and_clear();
+                out!("{:<8} skipped: {reason}", backend.name)?;
+                unavailable[planned.backend] = true;
                 continue;
             }
-            let [nx, ny] = scene.cloth.resolution;
-            let bar = ProgressBar::new(u64::from(rows) * u64::from(args.repeats)).with_style(
-                ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} timings")
-                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
-            );
-            bar.set_message(format!("{} {nx}x{ny}", backend.name));
-            let tuning = args.tuning.tuning();
-            let breakdown =
-                match effect_cost::measure(&scene, backend, &tuning, args.frames, args.repeats, |done, _| {
-                    bar.set_position(done as u64)
-                }) {
-                    Ok(rows) => rows,
-                    Err(SimError::Unavailable { reason, .. }) => {
-                        bar.finish_and_clear();
-                        out!("{:<8} skipped: {reason}", backend.name)?;
-                        break;
-                    }
-                    Err(e) => {
-                        bar.finish_and_clear();
-                        out!("{:<8} {nx}x{ny} refused: {e}", backend.name)?;
-                        continue;
-                    }
-                };
-            bar.finish_and_clear();
-            measured += 1;
-            let (adapter, substeps, timer, rows) =
-                (&breakdown.adapter, breakdown.substeps, breakdown.timer(), &breakdown.rows);
-            out!(
-                "\n{} on {adapter}: scene '{}', {nx}x{ny} vertices, {substeps} substeps per frame, {} timings of {} \
-                 frames per row in alternating order, {timer}",
-                backend.name,
-                scene.name,
-                args.repeats,
-                args.frames
-            )?;
-            out!("  {:<22} {:>10} {:>8}  {:<40} share of the whole", "row", "ms/frame", "spread", "added")?;
-            let whole = breakdown.whole_ms().max(f64::MIN_POSITIVE);
-            for r in rows {
-                let ms = r.ms_per_frame.median();
-                // Only a cost that stands out of the noise gets a bar and a share.
-                let share = match r.added_cost {
-                    None => Some(ms / whole),
-                    Some(d) => d.cost().map(|c| c / whole),
-                };
-                let share = share.map_or(String::new(), |s| {
-                    format!("{} {:.0}%", "#".repeat((s * 40.0).round() as usize), s * 100.0)
-                });
-                out!(
-                    "  {:<22} {:>10.3} {:>8.3}  {:<40} {share}",
-                    r.label(),
-                    ms,
-                    r.ms_per_frame.spread(),
-                    r.added_text()
-                )?;
-                let (verdict, added_ms, (low, high)) = match r.added_cost {
-                    None => ("", String::new(), (String::new(), String::new())),
-                    Some(d) => (
-                        d.verdict(),
-                        d.outside_noise().map_or(String::new(), |c| format!("{c:.6}")),
-                        (format!("{:.6}", d.range().0), format!("{:.6}", d.range().1)),
-                    ),
-                };
-                csv += &format!(
-                    "{},\"{}\",{nx}x{ny},{substeps},{},{},{},{},{ms:.6},{:.6},{verdict},{added_ms},{low},{high},{timer}\n",
-                    backend.name,
-                    adapter.replace('"', "'"),
-                    args.frames,
-                    args.repeats,
-                    r.label(),
-                    r.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
-                    r.ms_per_frame.spread()
-                );
+            Err(e) => {
+                bar.finish_and_clear();
+                out!("{:<8} {nx}x{ny} refused: {e}", backend.name)?;
+                continue;
             }
-            out!(
-                "  ms/frame: the median of the timings; spread: their interquartile range; added: the median of the \
+        };
+        bar.finish_and_clear();
+        measured += 1;
+        let (adapter, substeps, timer, rows) =
+            (&breakdown.adapter, breakdown.substeps, breakdown.timer(), &breakdown.rows);
+        out!(
+            "\n{} on {adapter}: scene '{}', {nx}x{ny} vertices, {substeps} substeps per frame, {} timings of {} \
+                 frames per row in alternating order, {timer}",
+            backend.name,
+            scene.name,
+            args.repeats,
+            args.frames
+        )?;
+        out!("  {:<22} {:>10} {:>8}  {:<40} share of the whole", "row", "ms/frame", "spread", "added")?;
+        let whole = breakdown.whole_ms().max(f64::MIN_POSITIVE);
+        for r in rows {
+            let ms = r.ms_per_frame.median();
+            // Only a cost that stands out of the noise gets a bar and a share.
+            let share = match r.added_cost {
+                None => Some(ms / whole),
+                Some(d) => d.cost().map(|c| c / whole),
+            };
+            let share = share
+                .map_or(String::new(), |s| format!("{} {:.0}%", "#".repeat((s * 40.0).round() as usize), s * 100.0));
+            out!("  {:<22} {:>10.3} {:>8.3}  {:<40} {share}", r.label(), ms, r.ms_per_frame.spread(), r.added_text())?;
+            let (verdict, added_ms, (low, high)) = match r.added_cost {
+                None => ("", String::new(), (String::new(), String::new())),
+                Some(d) => (
+                    d.verdict(),
+                    d.outside_noise().map_or(String::new(), |c| format!("{c:.6}")),
+                    (format!("{:.6}", d.range().0), format!("{:.6}", d.range().1)),
+                ),
+            };
+            csv += &format!(
+                "{},\"{}\",{nx}x{ny},{substeps},{},{},{},{},{ms:.6},{:.6},{verdict},{added_ms},{low},{high},{timer}\n",
+                backend.name,
+                adapter.replace('"', "'"),
+                args.frames,
+                args.repeats,
+                r.label(),
+                r.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
+                r.ms_per_frame.spread()
+            );
+        }
+        out!(
+            "  ms/frame: the median of the timings; spread: their interquartile range; added: the median of the \
                  paired differences with the row above where their middle half is above zero, else the range of that \
                  middle half (inside the noise)"
-            )?;
-        }
+        )?;
     }
     if measured == 0 {
         anyhow::bail!("no breakdown was measured: every backend listed was skipped or refused (see above)");

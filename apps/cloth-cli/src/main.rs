@@ -31,7 +31,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use cloth_backends as backends;
-use cloth_core::budget::WorkBudget;
+use cloth_core::budget::{WorkBudget, WorkPlan};
 use cloth_core::{ClothModel, Energy, Scene, Substeps, stability};
 use cloth_gpu::memory::MemoryEstimate;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -198,11 +198,25 @@ fn command(cli: Cli) -> Result<()> {
     }
 }
 
-fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>, backend: &str) -> Result<()> {
+/// What `cloth check` checks, decided before anything is built: the scene with its overrides,
+/// the backend whose budget it is checked against, and the work of the scene's own frames.
+fn plan_check(
+    path: &PathBuf,
+    grid: Option<[u32; 2]>,
+    substeps: Option<Substeps>,
+    backend: &str,
+) -> Result<(Scene, backends::Backend, WorkPlan)> {
     let scene = load_scene(Some(path), grid, substeps)?;
     let backend = backends::find(backend).map_err(anyhow::Error::msg)?;
+    let mut plan = WorkPlan::default();
+    plan.add(backend.name, &scene, scene.time.frames).map_err(|p| anyhow::anyhow!("time.{p}"))?;
+    Ok((scene, backend, plan))
+}
+
+fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>, backend: &str) -> Result<()> {
+    let (scene, backend, plan) = plan_check(path, grid, substeps, backend)?;
     let budget = WorkBudget::for_backend(backend.name);
-    let work = budget.check(&scene, scene.time.frames).map_err(|p| anyhow::anyhow!("time.{p}"))?;
+    let work = plan.runs.iter().map(|r| r.3).sum::<u64>();
     let [nx, ny] = scene.cloth.resolution;
     let model = ClothModel::new(&scene);
     let [st, sh, be] = model.spring_counts();
@@ -250,14 +264,22 @@ fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1 << 20) as f64
 }
 
-fn run(args: RunArgs) -> Result<()> {
+/// What `cloth run` will simulate, decided before anything starts: the scene with its
+/// overrides, the backend, the frames, and their work within the backend's budget.
+fn plan_run(args: &RunArgs) -> Result<(Scene, backends::Backend, u32, WorkPlan)> {
     let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
     let backend = backends::find(&args.backend).map_err(anyhow::Error::msg)?;
+    let frames = args.frames.unwrap_or(scene.time.frames);
+    let mut plan = WorkPlan::default();
+    plan.add(backend.name, &scene, frames).map_err(|p| anyhow::anyhow!("--{p}"))?;
+    Ok((scene, backend, frames, plan))
+}
+
+fn run(args: RunArgs) -> Result<()> {
+    let (scene, backend, frames, _) = plan_run(&args)?;
     if let Some(png) = &args.png {
         output::check_writable(png)?;
     }
-    let frames = args.frames.unwrap_or(scene.time.frames);
-    WorkBudget::for_backend(backend.name).check(&scene, frames).map_err(|p| anyhow::anyhow!("--{p}"))?;
     let mut sim = (backend.create)(&scene, &args.tuning.tuning())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;
 
@@ -305,4 +327,231 @@ fn run(args: RunArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    //! The command line under extreme input: every argument vector either fails to parse, is
+    //! refused with a message, or plans work within the budgets, and none panics. The plans are
+    //! the ones the commands themselves make before they run anything.
+
+    use super::*;
+    use cloth_core::budget::{MAX_FRAMES, MAX_SUBSTEPS_PER_FRAME};
+    use proptest::prelude::*;
+
+    /// What a command plans to run, from the same planning functions the commands call.
+    fn preflight(cli: &Cli) -> Result<WorkPlan> {
+        match &cli.command {
+            Command::Run(args) => plan_run(args).map(|plan| plan.3),
+            Command::Check { scene, grid, substeps, backend } => {
+                plan_check(scene, *grid, *substeps, backend).map(|plan| plan.2)
+            }
+            Command::Bench(args) => bench::plan(args).map(|plan| plan.work),
+            Command::Study(StudyCommand::Accuracy(args)) => study::plan(args).map(|plan| plan.work),
+            Command::Figure { .. } | Command::Backends => Ok(WorkPlan::default()),
+        }
+    }
+
+    fn scene_path(name: &str) -> String {
+        format!("{}/../../scenes/{name}", env!("CARGO_MANIFEST_DIR"))
+    }
+
+    /// A count as a user could type it: small, at a type's edge, far past it, negative, a float,
+    /// not a number at all.
+    fn count() -> impl Strategy<Value = String> {
+        prop_oneof![
+            4 => (0u64..64).prop_map(|n| n.to_string()),
+            2 => (64u64..5000).prop_map(|n| n.to_string()),
+            2 => any::<u32>().prop_map(|n| n.to_string()),
+            1 => any::<u64>().prop_map(|n| n.to_string()),
+            1 => prop::sample::select(vec![
+                "4294967295", "4294967296", "18446744073709551615", "99999999999999999999999", "-1", "0", "1e9",
+                "nan", "", "+7", " 8", "0x10",
+            ])
+            .prop_map(str::to_string),
+        ]
+    }
+
+    /// A number of seconds: ordinary, extreme but finite, or not finite.
+    fn seconds() -> impl Strategy<Value = String> {
+        prop_oneof![
+            3 => (1e-4f64..10.0).prop_map(|x| x.to_string()),
+            2 => any::<f64>().prop_map(|x| x.to_string()),
+            1 => prop::sample::select(vec!["1e308", "5e-324", "-0", "inf", "-inf", "NaN", "1e-300", "3.4e38"])
+                .prop_map(str::to_string),
+        ]
+    }
+
+    fn list(item: impl Strategy<Value = String>) -> impl Strategy<Value = String> {
+        prop::collection::vec(item, 1..5).prop_map(|v| v.join(","))
+    }
+
+    fn grid() -> impl Strategy<Value = String> {
+        (count(), count()).prop_map(|(a, b)| format!("{a}x{b}"))
+    }
+
+    fn substeps() -> impl Strategy<Value = String> {
+        prop_oneof![4 => count(), 1 => Just("auto".to_string())]
+    }
+
+    fn step_rules() -> impl Strategy<Value = String> {
+        list(prop_oneof![4 => count(), 1 => Just("scaled".to_string())])
+    }
+
+    fn backend() -> impl Strategy<Value = String> {
+        prop::sample::select(vec!["cpu", "cpu-f64", "wgpu", "vulkano", "metal"]).prop_map(str::to_string)
+    }
+
+    fn scene() -> impl Strategy<Value = String> {
+        prop::sample::select(vec!["drape.ron", "flag.ron", "hanging.ron", "hold.ron", "slide.ron"]).prop_map(scene_path)
+    }
+
+    /// `--flag value` when `value` is some.
+    fn flag(name: &'static str, value: impl Strategy<Value = String>) -> impl Strategy<Value = Vec<String>> {
+        prop::option::of(value).prop_map(move |v| v.map_or(vec![], |v| vec![name.to_string(), v]))
+    }
+
+    fn command() -> impl Strategy<Value = Vec<String>> {
+        let run = (scene(), flag("--grid", grid()), flag("--substeps", substeps()), flag("--frames", count()))
+            .prop_flat_map(|(scene, g, s, f)| {
+                flag("--backend", backend())
+                    .prop_map(move |b| [vec!["run".into(), scene.clone()], g.clone(), s.clone(), f.clone(), b].concat())
+            });
+        let check = (scene(), flag("--grid", grid()), flag("--substeps", substeps()), flag("--backend", backend()))
+            .prop_map(|(scene, g, s, b)| [vec!["check".into(), scene], g, s, b].concat());
+        let bench = (
+            flag("--grids", list(count())),
+            flag("--substeps", step_rules()),
+            flag("--frames", count()),
+            flag("--repeats", count()),
+            flag("--backends", list(backend())),
+            any::<bool>(),
+        )
+            .prop_map(|(g, s, f, r, b, effects)| {
+                let mode = if effects { vec!["--effects".to_string()] } else { vec![] };
+                [vec!["bench".into()], mode, g, s, f, r, b].concat()
+            });
+        let study = (
+            scene(),
+            flag("--grid", grid()),
+            flag("--duration", seconds()),
+            flag("--substeps", list(count())),
+            flag("--backends", list(backend())),
+            any::<bool>(),
+        )
+            .prop_map(|(scene, g, d, s, b, no_bisection)| {
+                let skip = if no_bisection { vec!["--no-bisection".to_string()] } else { vec![] };
+                [vec!["study".into(), "accuracy".into(), scene], g, d, s, b, skip].concat()
+            });
+        prop_oneof![run, check, bench, study]
+    }
+
+    /// How a case ended.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    enum Outcome {
+        NotParsed,
+        Refused,
+        Planned,
+    }
+
+    /// Parses and plans `args`; on success, checks the plan against the budgets and the limits
+    /// on substeps and frames.
+    fn plans_within_budget(args: &[String]) -> Result<Outcome, TestCaseError> {
+        let cli = match Cli::try_parse_from(std::iter::once("cloth".to_string()).chain(args.iter().cloned())) {
+            Ok(cli) => cli,
+            Err(e) => {
+                prop_assert!(!e.to_string().trim().is_empty(), "a parse error without a message");
+                return Ok(Outcome::NotParsed);
+            }
+        };
+        match preflight(&cli) {
+            Err(e) => {
+                prop_assert!(!format!("{e:#}").trim().is_empty(), "a refusal without a message");
+                Ok(Outcome::Refused)
+            }
+            Ok(plan) => {
+                prop_assert!(plan.cpu <= WorkBudget::CPU.max_vertex_substeps, "{args:?}: {plan:?}");
+                prop_assert!(plan.gpu <= WorkBudget::GPU.max_vertex_substeps, "{args:?}: {plan:?}");
+                for (backend, substeps, frames, work) in &plan.runs {
+                    prop_assert!(*substeps <= MAX_SUBSTEPS_PER_FRAME && *frames <= MAX_FRAMES, "{args:?}: {plan:?}");
+                    prop_assert!(*work <= WorkBudget::for_backend(backend).max_vertex_substeps, "{args:?}");
+                }
+                Ok(Outcome::Planned)
+            }
+        }
+    }
+
+    #[test]
+    fn every_accepted_command_plans_work_within_the_budgets() {
+        // Bounded for CI: each case reads at most one scene file and plans; none runs a
+        // simulation. A panic in parsing or planning fails the case like an assertion.
+        let config = ProptestConfig { cases: 1000, failure_persistence: None, ..ProptestConfig::default() };
+        let outcomes = std::cell::RefCell::new(Vec::new());
+        proptest::test_runner::TestRunner::new(config)
+            .run(&command(), |args| {
+                outcomes.borrow_mut().push(plans_within_budget(&args)?);
+                Ok(())
+            })
+            .unwrap_or_else(|e| panic!("{e}"));
+        // The cases reach every outcome, so the property is not true of nothing.
+        let outcomes = outcomes.into_inner();
+        for outcome in [Outcome::NotParsed, Outcome::Refused, Outcome::Planned] {
+            let share = outcomes.iter().filter(|&&o| o == outcome).count() as f64 / outcomes.len() as f64;
+            eprintln!("{outcome:?}: {:.1}% of {} cases", share * 100.0, outcomes.len());
+            assert!(share > 0.05, "{outcome:?} in only {:.1}% of {} cases", share * 100.0, outcomes.len());
+        }
+    }
+
+    fn refusal(list: &[&str]) -> String {
+        let cli = Cli::try_parse_from(std::iter::once("cloth").chain(list.iter().copied())).expect("parses");
+        format!("{:#}", preflight(&cli).expect_err("refused"))
+    }
+
+    /// Cases the property found or that sit at its edges, kept as plain tests.
+    #[test]
+    fn sweeps_whose_runs_fit_alone_but_not_together_are_refused() {
+        // 200 rows of 512² × 64 substeps × 5 timings of 10 frames: 1.3e11 vertex-substeps, within
+        // a GPU's budget, beyond the CPU's.
+        let grids = vec!["512"; 200].join(",");
+        let bench = ["bench", "--grids", grids.as_str(), "--substeps", "64", "--backends"];
+        let cli = Cli::try_parse_from([&["cloth"][..], &bench, &["wgpu"]].concat()).unwrap();
+        assert_eq!(preflight(&cli).unwrap().gpu, 200 * 512 * 512 * 64 * 51);
+        let message = refusal(&[&bench[..], &["cpu"]].concat());
+        assert!(
+            message.contains("the 200 runs of this command add up to 1.7") && message.contains("fewer"),
+            "{message}"
+        );
+        // The f64 reference of a 64² study at 100000 substeps (9.8e10 vertex-substeps) and one run
+        // (1.2e10) each fit the CPU's 1e11; together they do not.
+        let hanging = scene_path("hanging.ron");
+        let study = ["study", "accuracy", &hanging, "--grid", "64x64", "--substeps", "100000", "--backends", "cpu"];
+        let message = refusal(&[&study[..], &["--integrators", "euler", "--no-bisection"]].concat());
+        assert!(message.contains("the 2 runs of this command add up to 1.106e11"), "{message}");
+        assert!(message.contains("sweep fewer --substeps"), "{message}");
+    }
+
+    #[test]
+    fn cases_found_at_the_edges_are_refused_with_a_message() {
+        // Found by the property: a row whose vertex-substeps overflow u64 panicked; now the row
+        // is refused (and the command, with no row left, ends with an error when run).
+        let cli = Cli::try_parse_from(["cloth", "bench", "--grids", "536870912", "--substeps", "64"]).unwrap();
+        let Command::Bench(bench_args) = &cli.command else { unreachable!() };
+        let plan = bench::plan(bench_args).unwrap();
+        let refusals: Vec<String> = plan.refusals().map(|p| p.to_string()).collect();
+        assert!(
+            !refusals.is_empty() && refusals.iter().all(|p| p.contains("9.408e20 vertex-substeps")),
+            "{refusals:?}"
+        );
+        // Found by the property: the flag's pinned edge at 4294967295 vertices was listed (32 GB)
+        // before the grid was refused.
+        let message = refusal(&["bench", "--effects", "--grids", "4294967295"]);
+        assert!(message.contains("cloth.resolution: grid 4294967295x"), "{message}");
+        let message = refusal(&["bench", "--effects", "--grids", "16", "--repeats", "2"]);
+        assert!(message.contains("--repeats 2 is too few"), "{message}");
+        let message = refusal(&["run", "--frames", "4294967295", "--backend", "cpu"]);
+        assert!(message.contains("--frames: 4294967295 frames is more than"), "{message}");
+        let hanging = scene_path("hanging.ron");
+        let message = refusal(&["study", "accuracy", &hanging, "--duration", "1e308"]);
+        assert!(message.contains("more than the 10000000 one command may run"), "{message}");
+    }
 }

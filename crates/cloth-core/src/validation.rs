@@ -116,6 +116,8 @@ impl Scene {
         if grid_ok {
             let host_bytes = ClothModel::estimated_host_bytes(self);
             if (nx as u64) * (ny as u64) > u32::MAX as u64 / 2 || host_bytes > MAX_HOST_BYTES {
+                // Nothing sized by the grid (a pinned edge's vertex list) is built for it.
+                grid_ok = false;
                 c.fail(
                     "cloth.resolution",
                     format!(
@@ -153,7 +155,7 @@ impl Scene {
             );
         }
         let vertex_count = nx as u64 * ny as u64;
-        for (k, pin) in cloth.pins.iter().enumerate() {
+        for (k, pin) in cloth.pins.iter().enumerate().filter(|_| grid_ok) {
             if let Some(bad) = pin_indices(pin, nx, ny).into_iter().find(|&i| i >= vertex_count) {
                 let shown =
                     if bad == u64::MAX { "a point outside the grid".to_string() } else { format!("vertex {bad}") };
@@ -365,6 +367,18 @@ mod tests {
         let err = s.validate().unwrap_err().to_string();
         assert!(err.contains("cloth.resolution: grid 100000x100000 needs about"), "{err}");
         assert!(err.contains("use a smaller grid"), "{err}");
+    }
+
+    #[test]
+    fn a_pinned_edge_of_a_grid_too_large_is_not_listed() {
+        // Found by the command line's property test: `cloth bench --effects --grids 4294967295`
+        // listed the flag's pinned edge, 4e9 vertices, 32 GB, before refusing the grid.
+        let mut s = Scene::default();
+        s.cloth.resolution = [4_000_000_000, 3];
+        s.cloth.pins = vec![Pin::Edge(crate::scene::Edge::Bottom)];
+        let err = s.validate().unwrap_err();
+        let fields: Vec<_> = err.problems().iter().map(|p| p.field.as_str()).collect();
+        assert_eq!(fields, ["cloth.resolution"], "{err}");
     }
 
     #[test]

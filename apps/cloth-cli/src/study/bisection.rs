@@ -63,6 +63,15 @@ impl std::fmt::Display for Limit {
     }
 }
 
+/// At most the vertex-substeps [`largest_stable_substep`] runs for `integrator` on `scene`: the
+/// bracket's first trial and every bisection step (or one trial per multiple where no limit is
+/// predicted, fewer), each a fresh run of `TRIAL_SUBSTEPS` substeps (XPBD: `XPBD_TRIAL_SUBSTEPS`).
+pub fn planned_vertex_substeps(scene: &Scene, integrator: Integrator) -> u64 {
+    let substeps = if integrator == Integrator::Xpbd { XPBD_TRIAL_SUBSTEPS } else { TRIAL_SUBSTEPS };
+    let trials = (1 + BISECTION_STEPS).max(XPBD_MULTIPLES.len() as u32);
+    (scene.vertex_count() as u64).saturating_mul(u64::from(trials) * u64::from(substeps))
+}
+
 /// Whether a trial (`TRIAL_SUBSTEPS`, or `XPBD_TRIAL_SUBSTEPS`, substeps of `h` from the scene's
 /// start) stays finite and within 1 km.
 fn stable(

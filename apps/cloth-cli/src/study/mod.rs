@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use cloth_backends as backends;
-use cloth_core::budget::{MAX_FRAMES, MAX_SUBSTEPS_PER_FRAME, WorkBudget};
+use cloth_core::budget::{MAX_FRAMES, MAX_SUBSTEPS_PER_FRAME, WorkPlan};
 use cloth_core::{Integrator, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -100,11 +100,28 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-pub fn accuracy(args: AccuracyArgs) -> Result<()> {
+/// What `cloth study accuracy` will run, decided before anything runs or is written.
+pub(crate) struct Plan {
+    scene_path: PathBuf,
+    base: Scene,
+    integrators: Vec<Integrator>,
+    backends: Vec<backends::Backend>,
+    frames: u32,
+    reference_substeps: u32,
+    /// Every run, the reference and the bisections, within the budgets alone and together.
+    pub(crate) work: WorkPlan,
+}
+
+/// The plan of `args`.
+///
+/// # Errors
+/// An unreadable or invalid scene, a bad flag, or runs that exceed a budget, alone or together.
+pub(crate) fn plan(args: &AccuracyArgs) -> Result<Plan> {
     let scene_path = args.scene.clone().unwrap_or_else(|| PathBuf::from("scenes/hanging.ron"));
     let mut base = Scene::load(&scene_path).with_context(|| format!("cannot use scene {}", scene_path.display()))?;
     if let Some(g) = args.grid {
         base.cloth.resolution = g;
+        base.validate().context("the scene with --grid is invalid")?;
     }
     if !(args.duration.is_finite() && args.duration > 0.0) {
         bail!("--duration must be a positive number of seconds (got {})", args.duration);
@@ -113,17 +130,6 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         bail!("--substeps needs at least one count, each at least 1 (got {:?})", args.substeps);
     }
     let integrators = parse_integrators(&args.integrators)?;
-    // The outputs, checked and claimed before the run: a second study writing the same files
-    // in the same folder is refused rather than left to overwrite this one's.
-    if let Some(dir) = args.csv.parent()
-        && !dir.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    let _claim = crate::output::OutputLock::claim(&args.csv)?;
-    for path in [Some(&args.csv), args.report.as_ref()].into_iter().flatten() {
-        crate::output::check_writable(path)?;
-    }
     let chosen: Vec<backends::Backend> =
         args.backends.iter().map(|n| backends::find(n).map_err(anyhow::Error::msg)).collect::<Result<_>>()?;
     let frames = (args.duration / base.time.frame_dt).round().max(1.0);
@@ -144,20 +150,55 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         );
     }
     let reference_substeps = finest * 8;
-    // The reference (eight times the finest substeps, on the f64 CPU) and every run fit the
-    // budgets before anything runs.
+    // The reference (eight times the finest substeps, on the f64 CPU), every run and every
+    // bisection fit the budgets, alone and together, before anything runs.
+    let mut work = WorkPlan::default();
     let mut reference_scene = base.clone();
     reference_scene.time.substeps = cloth_core::Substeps::Fixed(reference_substeps);
-    WorkBudget::CPU.check(&reference_scene, frames).map_err(|p| anyhow::anyhow!("the f64 reference: {p}"))?;
+    work.add("cpu-f64", &reference_scene, frames).map_err(|p| anyhow::anyhow!("the f64 reference: {p}"))?;
     for backend in &chosen {
-        let mut finest_run = base.clone();
-        finest_run.time.substeps = cloth_core::Substeps::Fixed(finest);
-        let budget = WorkBudget::for_backend(backend.name);
-        budget.check(&finest_run, frames).map_err(|p| anyhow::anyhow!("{}: {p}", backend.name))?;
+        for &n in &args.substeps {
+            for _ in &integrators {
+                let mut run = base.clone();
+                run.time.substeps = cloth_core::Substeps::Fixed(n);
+                work.add(backend.name, &run, frames).map_err(|p| anyhow::anyhow!("{}: {p}", backend.name))?;
+            }
+        }
+        if !args.no_bisection {
+            for &integrator in &integrators {
+                let trials = bisection::planned_vertex_substeps(&base, integrator);
+                work.add_work(backend.name, 1, 0, trials);
+            }
+        }
+    }
+    work.check(
+        "--substeps",
+        "sweep fewer --substeps, --integrators or --backends, a shorter --duration, a smaller --grid, or \
+         --no-bisection",
+    )
+    .map_err(anyhow::Error::msg)?;
+    Ok(Plan { scene_path, base, integrators, backends: chosen, frames, reference_substeps, work })
+}
+
+pub fn accuracy(args: AccuracyArgs) -> Result<()> {
+    let Plan { scene_path, base, integrators, backends: chosen, frames, reference_substeps, work } = plan(&args)?;
+    // The outputs, checked and claimed before the run: a second study writing the same files
+    // in the same folder is refused rather than left to overwrite this one's.
+    if let Some(dir) = args.csv.parent()
+        && !dir.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let _claim = crate::output::OutputLock::claim(&args.csv)?;
+    for path in [Some(&args.csv), args.report.as_ref()].into_iter().flatten() {
+        crate::output::check_writable(path)?;
     }
     eprintln!(
-        "reference: f64 CPU, RK4, {reference_substeps} substeps per frame, {frames} frames of {:.4} s",
-        base.time.frame_dt
+        "reference: f64 CPU, RK4, {reference_substeps} substeps per frame, {frames} frames of {:.4} s; {} runs of \
+         {:.3e} vertex-substeps in all",
+        base.time.frame_dt,
+        work.runs.len(),
+        work.runs.iter().map(|r| r.3 as f64).sum::<f64>()
     );
     let reference = measure::Reference::new(&base, frames, reference_substeps)?;
 
