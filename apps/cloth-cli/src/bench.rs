@@ -170,7 +170,7 @@ pub(crate) fn plan(args: &BenchArgs) -> Result<Plan> {
 pub fn run(args: BenchArgs) -> Result<()> {
     let plan = plan(&args)?;
     if let Some(path) = &args.csv {
-        crate::output::check_writable(path)?;
+        cloth_backends::output::check_writable(path)?;
     }
     if args.effects {
         return effects(&args, &plan);
@@ -339,7 +339,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 r.state_bytes.map_or(String::new(), |b| b.to_string())
             );
         }
-        crate::output::write_atomically(path, csv.as_bytes())?;
+        cloth_backends::output::write_atomically(path, csv.as_bytes())?;
         out!("wrote {}", path.display())?;
     }
     Ok(())
@@ -439,7 +439,7 @@ fn effects(args: &BenchArgs, plan: &Plan) -> Result<()> {
         anyhow::bail!("no breakdown was measured: every backend listed was skipped or refused (see above)");
     }
     if let Some(path) = &args.csv {
-        crate::output::write_atomically(path, csv.as_bytes())?;
+        cloth_backends::output::write_atomically(path, csv.as_bytes())?;
         out!("wrote {}", path.display())?;
     }
     Ok(())

@@ -36,7 +36,7 @@ pub fn write(figure: Figure, path: &Path) -> Result<()> {
         .map_err(|e| anyhow!("cannot draw {}: {e}", path.display()))?;
         root.present().map_err(|e| anyhow!("cannot draw {}: {e}", path.display()))?;
     }
-    crate::output::write_atomically(path, text.as_bytes())
+    Ok(cloth_backends::output::write_atomically(path, text.as_bytes())?)
 }
 
 fn text(area: &Area, label: &str, at: (i32, i32), size: u32, color: &RGBColor) -> Result<(), String> {

@@ -19,7 +19,6 @@ macro_rules! out {
 
 mod bench;
 mod figure;
-mod output;
 mod render;
 mod report;
 mod study;
@@ -278,7 +277,7 @@ fn plan_run(args: &RunArgs) -> Result<(Scene, backends::Backend, u32, WorkPlan)>
 fn run(args: RunArgs) -> Result<()> {
     let (scene, backend, frames, _) = plan_run(&args)?;
     if let Some(png) = &args.png {
-        output::check_writable(png)?;
+        backends::output::check_writable(png)?;
     }
     let mut sim = (backend.create)(&scene, &args.tuning.tuning())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;
@@ -552,6 +551,6 @@ mod tests {
         assert!(message.contains("--frames: 4294967295 frames is more than"), "{message}");
         let hanging = scene_path("hanging.ron");
         let message = refusal(&["study", "accuracy", &hanging, "--duration", "1e308"]);
-        assert!(message.contains("more than the 10000000 one command may run"), "{message}");
+        assert!(message.contains("--duration 1e308 s is more than the 10000000 frames"), "{message}");
     }
 }

@@ -82,7 +82,7 @@ pub fn write_png(
     height: usize,
 ) -> anyhow::Result<()> {
     let pixels = render(model, state, width, height);
-    crate::output::write_atomically(path, &encode_png(&pixels, width as u32, height as u32)?)
+    Ok(cloth_backends::output::write_atomically(path, &encode_png(&pixels, width as u32, height as u32)?)?)
 }
 
 /// RGB8 `pixels` of `width × height` as a PNG file's bytes.

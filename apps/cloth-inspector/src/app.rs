@@ -64,6 +64,8 @@ pub struct LaunchOptions {
     pub color: Option<ColorMode>,
     /// Measure the cost of each effect at start (a headless run waits for it and logs it).
     pub measure_effects: bool,
+    /// Set when a headless run fails to write its screenshot, so the process exits non-zero.
+    pub headless_failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 /// Runtime resources: never persisted.
@@ -90,6 +92,7 @@ pub struct Runtime {
     sim_time_s: f64,
     screenshot: Option<(u32, PathBuf)>,
     screenshot_done: Arc<Mutex<Option<Result<(), String>>>>,
+    headless_failed: Arc<std::sync::atomic::AtomicBool>,
     screenshot_requested: bool,
     confirm_quit: bool,
     allow_close: bool,
@@ -178,6 +181,7 @@ impl InspectorApp {
                 sim_time_s: 0.0,
                 screenshot: options.screenshot,
                 screenshot_done: Arc::new(Mutex::new(None)),
+                headless_failed: options.headless_failed,
                 screenshot_requested: false,
                 confirm_quit: false,
                 allow_close: false,
@@ -296,7 +300,7 @@ impl InspectorApp {
                     self.state.saved_scene = self.state.scene.clone();
                     self.state.scene_path = Some(path);
                 }
-                Err(e) => self.runtime.notices.push(format!("cannot save {}: {e}", path.display())),
+                Err(e) => self.runtime.notices.push(format!("the scene was not saved: {e}")),
             },
         }
     }
@@ -549,7 +553,10 @@ impl InspectorApp {
                     }
                     eprintln!("wrote {}", path.display());
                 }
-                Err(e) => eprintln!("screenshot failed: {e}"),
+                Err(e) => {
+                    eprintln!("error: the screenshot failed: {e}");
+                    self.runtime.headless_failed.store(true, std::sync::atomic::Ordering::SeqCst);
+                }
             }
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
@@ -586,19 +593,12 @@ fn write_png(image: &egui::ColorImage, path: &Path) -> Result<(), String> {
     let pixels: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
     writer.write_image_data(&pixels).map_err(|e| e.to_string())?;
     writer.finish().map_err(|e| e.to_string())?;
-    let tmp = path.with_extension("png.tmp");
-    std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path)).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        format!("cannot write {}: {e}", path.display())
-    })
+    cloth_backends::output::write_atomically(path, &bytes).map_err(|e| e.to_string())
 }
 
-/// Writes a scene next to its destination and renames it into place, so a crash never leaves a
-/// half-written file.
+/// Writes a scene whole or not at all, so a crash never leaves a half-written file.
 pub fn save_atomically(scene: &Scene, path: &Path) -> std::io::Result<()> {
-    let tmp = path.with_extension("ron.tmp");
-    std::fs::write(&tmp, scene.to_ron_string())?;
-    std::fs::rename(&tmp, path)
+    cloth_backends::output::write_atomically(path, scene.to_ron_string().as_bytes())
 }
 
 impl eframe::App for InspectorApp {
@@ -731,7 +731,8 @@ mod tests {
         let scene = Scene { name: "saved".into(), ..Default::default() };
         save_atomically(&scene, &path).unwrap();
         assert_eq!(Scene::load(&path).unwrap(), scene);
-        assert!(!path.with_extension("ron.tmp").exists());
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, ["scene.ron"], "no temporary file is left");
         std::fs::remove_dir_all(dir).unwrap();
     }
 

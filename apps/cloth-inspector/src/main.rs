@@ -13,6 +13,8 @@ mod stats;
 mod study;
 
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Result, anyhow, bail};
 use clap::Parser;
@@ -41,20 +43,35 @@ struct Args {
     measure_effects: bool,
 }
 
-fn main() -> Result<()> {
+/// Runs the inspector; an error ends it with its message and exit code 1 (a headless run also
+/// when its screenshot could not be written).
+fn main() -> std::process::ExitCode {
     if let Some(dir) = cloth_backends::private_runtime_dir(std::env::var_os("XDG_RUNTIME_DIR").as_deref()) {
         // SAFETY: at start-up, before any thread is spawned.
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", dir) };
     }
-    let args = Args::parse();
-    if args.screenshot.is_some() {
-        // The headless run's frames, within the work budget of the backend it runs on.
+    let failed = Arc::new(AtomicBool::new(false));
+    match inspect(Args::parse(), failed.clone()) {
+        Ok(()) if !failed.load(Ordering::SeqCst) => std::process::ExitCode::SUCCESS,
+        Ok(()) => std::process::ExitCode::FAILURE,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn inspect(args: Args, headless_failed: Arc<AtomicBool>) -> Result<()> {
+    if let Some(path) = &args.screenshot {
+        // The headless run's frames, within the work budget of the backend it runs on, and its
+        // picture's path, checked before anything runs.
         let scene = match &args.scene {
             Some(path) => cloth_core::Scene::load(path).map_err(|e| anyhow!("{}: {e}", path.display()))?,
             None => cloth_core::Scene::default(),
         };
         let budget = cloth_core::budget::WorkBudget::for_backend(args.backend.as_deref().unwrap_or("cpu"));
         budget.check(&scene, args.frames).map_err(|p| anyhow!("--{p}"))?;
+        cloth_backends::output::check_writable(path)?;
     }
     if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
         bail!(
@@ -78,6 +95,7 @@ fn main() -> Result<()> {
             _ => render::ColorMode::Plain,
         }),
         measure_effects: args.measure_effects,
+        headless_failed,
     };
     let native = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()

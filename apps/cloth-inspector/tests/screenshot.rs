@@ -121,3 +121,25 @@ fn the_effect_cost_breakdown_is_measured_and_shown() {
     }
     let _ = std::fs::remove_file(out);
 }
+
+/// A headless run that cannot do its work says so and exits non-zero before it opens a window:
+/// a picture path it cannot write, a frame count beyond the work budget.
+#[test]
+fn a_headless_run_that_cannot_finish_is_refused_before_it_starts() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    for (args, expected) in [
+        (&["--frames", "2", "--screenshot", "/nonexistent/folder/x.png"][..], "cannot write /nonexistent/folder/x.png"),
+        (&["--frames", "4294967295", "--screenshot", "x.png"][..], "--frames: 4294967295 frames is more than"),
+    ] {
+        let output = Command::new(env!("CARGO_BIN_EXE_cloth-inspector"))
+            .args(args)
+            .env("RUST_BACKTRACE", "0")
+            .current_dir(&root)
+            .output()
+            .expect("the inspector starts");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.starts_with("error: ") && stderr.contains(expected), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "one line, no backtrace: {stderr}");
+    }
+}

@@ -1,11 +1,14 @@
 //! # cloth-backends
 //!
 //! The backends compiled into the workbench, by name: what `cloth backends` lists, what
-//! `--backend NAME` picks, and what the inspector offers.
+//! `--backend NAME` picks, and what the inspector offers; and what the apps share besides: the
+//! benchmarks' measurements (`throughput`, `effect_cost`, `timing`) and how they write files
+//! (`output`).
 
 #![warn(missing_docs)]
 
 pub mod effect_cost;
+pub mod output;
 pub mod throughput;
 pub mod timing;
 

@@ -124,7 +124,7 @@ pub(crate) fn plan(args: &AccuracyArgs) -> Result<Plan> {
         base.validate().context("the scene with --grid is invalid")?;
     }
     if !(args.duration.is_finite() && args.duration > 0.0) {
-        bail!("--duration must be a positive number of seconds (got {})", args.duration);
+        bail!("--duration must be a positive number of seconds (got {:?})", args.duration);
     }
     if args.substeps.is_empty() || args.substeps.contains(&0) {
         bail!("--substeps needs at least one count, each at least 1 (got {:?})", args.substeps);
@@ -135,9 +135,11 @@ pub(crate) fn plan(args: &AccuracyArgs) -> Result<Plan> {
     let frames = (args.duration / base.time.frame_dt).round().max(1.0);
     if frames > MAX_FRAMES as f64 {
         bail!(
-            "--duration {} s is {frames:.3e} frames of {} s, more than the {MAX_FRAMES} one command may run",
+            "--duration {:?} s is more than the {MAX_FRAMES} frames of {} s one command may run: ask for at most \
+             {:.0} s",
             args.duration,
-            base.time.frame_dt
+            base.time.frame_dt,
+            (MAX_FRAMES as f64 * base.time.frame_dt).floor()
         );
     }
     let frames = frames as u32;
@@ -189,9 +191,9 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
     {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    let _claim = crate::output::OutputLock::claim(&args.csv)?;
+    let _claim = cloth_backends::output::OutputLock::claim(&args.csv)?;
     for path in [Some(&args.csv), args.report.as_ref()].into_iter().flatten() {
-        crate::output::check_writable(path)?;
+        cloth_backends::output::check_writable(path)?;
     }
     eprintln!(
         "reference: f64 CPU, RK4, {reference_substeps} substeps per frame, {frames} frames of {:.4} s; {} runs of \
@@ -274,12 +276,12 @@ pub fn accuracy(args: AccuracyArgs) -> Result<()> {
         let copy = |from: &Path, extension: &str| -> Result<String> {
             let name = format!("{stem}.{extension}");
             let bytes = std::fs::read(from).with_context(|| format!("cannot read {}", from.display()))?;
-            crate::output::write_atomically(&dir.join(&name), &bytes)?;
+            cloth_backends::output::write_atomically(&dir.join(&name), &bytes)?;
             Ok(name)
         };
         let files = report::Files { csv: copy(&args.csv, "csv")?, svg: copy(&svg, "svg")?, png: copy(&png, "png")? };
         let text = report::markdown(&study, &files);
-        crate::output::write_atomically(path, text.as_bytes())?;
+        cloth_backends::output::write_atomically(path, text.as_bytes())?;
         out!("wrote the report {} (with {}, {} and {})", path.display(), files.csv, files.svg, files.png)?;
     }
     Ok(())
@@ -290,5 +292,5 @@ fn write_csv(rows: &[Row], path: &Path) -> Result<()> {
     for r in rows {
         text += &format!("{}\n", r.csv());
     }
-    crate::output::write_atomically(path, text.as_bytes())
+    Ok(cloth_backends::output::write_atomically(path, text.as_bytes())?)
 }

@@ -93,11 +93,11 @@ pub fn write(study: &Study, svg: &Path, png: &Path) -> Result<()> {
     let mut text = String::new();
     draw(SVGBackend::with_string(&mut text, SIZE).into_drawing_area(), study)
         .with_context(|| format!("cannot draw {}", svg.display()))?;
-    crate::output::write_atomically(svg, text.as_bytes())?;
+    cloth_backends::output::write_atomically(svg, text.as_bytes())?;
     let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     draw(BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area(), study)
         .with_context(|| format!("cannot draw {}", png.display()))?;
-    crate::output::write_atomically(png, &crate::render::encode_png(&pixels, SIZE.0, SIZE.1)?)
+    Ok(cloth_backends::output::write_atomically(png, &crate::render::encode_png(&pixels, SIZE.0, SIZE.1)?)?)
 }
 
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, study: &Study) -> Result<()>
