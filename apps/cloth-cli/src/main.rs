@@ -155,7 +155,7 @@ fn main() -> std::process::ExitCode {
         }
         Err(e) if e.downcast_ref::<Unstable>().is_some() => {
             eprintln!("{e}");
-            std::process::ExitCode::from(2)
+            std::process::ExitCode::from(3)
         }
         Err(e) => {
             eprintln!("error: {e:#}");
@@ -164,8 +164,8 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-/// `cloth check` of a valid scene whose substep exceeds the stable bound: exit code 2 (1 is an
-/// invalid scene or another error).
+/// `cloth check` of a valid scene whose substep exceeds the stable bound: exit code 3 (1 is an
+/// invalid scene or another error, 2 a command line that cannot be parsed).
 #[derive(Debug, thiserror::Error)]
 #[error("unstable: the substep is {margin:.2} times the largest stable substep; raise the substeps")]
 struct Unstable {
