@@ -34,6 +34,20 @@ pub struct EffectCostsPanel {
 impl EffectCostsPanel {
     /// Starts measuring `scene` on `backend` in the background.
     pub fn start(&mut self, scene: &Scene, backend: &str, tuning: &cloth_gpu::GpuTuning) {
+        // Every row's warm-up frame and timings, within the backend's work budget, or not at all.
+        let rows = effect_cost::steps(scene).len() as u32;
+        let frames = (FRAMES * REPEATS + 1).saturating_mul(rows);
+        if let Err(p) = cloth_core::budget::WorkBudget::for_backend(backend)
+            .check(&effect_cost::row_scene(scene, scene.effects), frames)
+        {
+            self.message = Some(format!(
+                "not measured: {rows} rows of {} frames each on {backend} are too much work ({}); use a smaller grid \
+                 or fewer substeps",
+                FRAMES * REPEATS + 1,
+                p.message
+            ));
+            return;
+        }
         let progress = Arc::new(Mutex::new(Progress::default()));
         let (shared, scene, name, tuning) = (progress.clone(), scene.clone(), backend.to_string(), tuning.clone());
         std::thread::spawn(move || {
@@ -163,5 +177,24 @@ impl EffectCostsPanel {
             ui.label(format!("{whole:.3} ms per frame"));
             ui.end_row();
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_breakdown_beyond_the_work_budget_is_not_started() {
+        // 512² vertices at 100000 substeps: one frame is 2.6e10 vertex-substeps, and the
+        // breakdown's rows need hundreds of frames.
+        let mut scene = Scene::default();
+        scene.cloth.resolution = [512, 512];
+        scene.time.substeps = cloth_core::Substeps::Fixed(100_000);
+        let mut panel = EffectCostsPanel::default();
+        panel.start(&scene, "cpu", &Default::default());
+        assert!(!panel.is_running());
+        let summary = panel.summary().join("\n");
+        assert!(summary.contains("not measured: 8 rows of 51 frames each on cpu are too much work"), "{summary}");
     }
 }
