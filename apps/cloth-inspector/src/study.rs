@@ -53,6 +53,23 @@ pub fn quick_study(scene: &Scene, backend: &str, tuning: &cloth_gpu::GpuTuning, 
         }
     };
     set(&|p| *p = StudyProgress { total: 1 + Integrator::ALL.len() * QUICK_SUBSTEPS.len(), ..Default::default() });
+    // The reference and every run, within the work budgets alone and together (a scene with a
+    // tiny frame step makes 0.25 s many frames).
+    let mut work = cloth_core::budget::WorkPlan::default();
+    let planned = work
+        .add("cpu-f64", &with(Integrator::RungeKutta4, 8 * QUICK_SUBSTEPS[2]), frames)
+        .and_then(|_| {
+            Integrator::ALL
+                .iter()
+                .flat_map(|&i| QUICK_SUBSTEPS.map(move |n| (i, n)))
+                .try_for_each(|(i, n)| work.add(backend, &with(i, n), frames).map(|_| ()))
+        })
+        .and_then(|()| work.check("time.frame_dt", "use a longer frame step for the quick study"));
+    if let Err(p) = planned {
+        let message = format!("the quick study is too much work: {p}");
+        set(&|p| p.error = Some(message.clone()));
+        return;
+    }
     let reference = match CpuSimulatorF64::new(&with(Integrator::RungeKutta4, 8 * QUICK_SUBSTEPS[2])) {
         Ok(mut sim) => {
             let _ = sim.advance(frames);
@@ -164,6 +181,20 @@ mod tests {
         assert_eq!((p.done, p.total, p.error.clone()), (p.total, 13, None));
         let error = |series: &str| p.points.iter().find(|q| q.series == series).map(|q| q.rms_error_m).unwrap();
         assert!(error("cpu rk4") < error("cpu verlet") && error("cpu verlet") < error("cpu euler"), "{:?}", p.points);
+    }
+
+    #[test]
+    fn a_quick_study_beyond_the_work_budget_is_not_run() {
+        // 0.25 s of 1e-7 s frames on 12 x 12: the reference alone fits the CPU's budget (9.2e10
+        // vertex-substeps), the reference and the runs together do not.
+        let progress = Mutex::new(StudyProgress::default());
+        let mut scene = Scene::load(&crate::panels::scene::scenes_dir().join("hanging.ron")).unwrap();
+        scene.time.frame_dt = 1e-7;
+        quick_study(&scene, "cpu", &Default::default(), &progress);
+        let p = progress.lock().unwrap();
+        let error = p.error.clone().unwrap_or_default();
+        assert!(error.contains("the quick study is too much work") && error.contains("add up to"), "{error}");
+        assert_eq!(p.done, 0);
     }
 
     #[test]
