@@ -203,6 +203,7 @@ impl InspectorApp {
     /// Creates a simulator of backend `name` for the current scene.
     fn create(&self, name: &str) -> Result<Sim, SimError> {
         let scene = &self.state.scene;
+        one_frame_fits(scene, name)?;
         if name == "wgpu"
             && let Some(rs) = &self.runtime.render_state
         {
@@ -582,6 +583,18 @@ pub fn hand_over(state: &ClothState, to: &mut dyn Simulator) -> Result<(), SimEr
     to.write_state(state)
 }
 
+/// The inspector runs a frame at a time for as long as it is open: one frame of `scene` must be
+/// work `backend` finishes in minutes (its work budget), or the window would stop answering.
+///
+/// # Errors
+/// The budget's problem, as an invalid scene.
+pub fn one_frame_fits(scene: &Scene, backend: &str) -> Result<(), SimError> {
+    cloth_core::budget::WorkBudget::for_backend(backend)
+        .check(scene, 1)
+        .map(|_| ())
+        .map_err(|p| SimError::Scene(cloth_core::SceneError::Invalid(vec![p])))
+}
+
 /// Writes the window's image as a PNG, whole or not at all (a temporary file renamed into place).
 fn write_png(image: &egui::ColorImage, path: &Path) -> Result<(), String> {
     let [w, h] = image.size;
@@ -721,6 +734,18 @@ impl eframe::App for InspectorApp {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scene_whose_one_frame_exceeds_the_budget_is_not_started() {
+        let mut scene = Scene::default();
+        scene.cloth.resolution = [2048, 2048];
+        scene.time.substeps = cloth_core::Substeps::Fixed(100_000);
+        // 4.2e11 vertex-substeps a frame: beyond the CPU's 1e11, within a GPU's 1e13.
+        let e = one_frame_fits(&scene, "cpu").unwrap_err().to_string();
+        assert!(e.contains("one frame alone is 4.194e11 vertex-substeps"), "{e}");
+        assert!(one_frame_fits(&scene, "vulkano").is_ok());
+        assert!(one_frame_fits(&Scene::default(), "cpu").is_ok());
+    }
 
     #[test]
     fn saving_replaces_the_file_whole_and_leaves_no_temporary() {
