@@ -1,6 +1,7 @@
 //! `cloth`: the headless command-line front end of the cloth workbench.
 //!
-//! * `cloth run [SCENE]`: simulate and summarise (text or `--json`), optionally render a PNG;
+//! * `cloth run [SCENE]`: simulate and summarise (text or `--json`), optionally render a PNG and
+//!   write the final mesh as an OBJ;
 //! * `cloth check SCENE`: validate, and print spring counts, memory and the stable substep;
 //! * `cloth backends`: the backends compiled in and the adapters each can use;
 //! * `cloth bench`: ms per frame and vertex-substeps per second of each backend;
@@ -31,7 +32,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use cloth_backends as backends;
 use cloth_core::budget::{WorkBudget, WorkPlan};
-use cloth_core::{ClothModel, Energy, Scene, Substeps, stability};
+use cloth_core::{ClothModel, Energy, Scene, Substeps, intersections, stability};
 use cloth_gpu::memory::MemoryEstimate;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -107,6 +108,10 @@ struct RunArgs {
     /// Render the final state to this PNG file.
     #[arg(long)]
     png: Option<PathBuf>,
+    /// Write the final cloth mesh to this Wavefront OBJ file (vertices, normals, two triangles a
+    /// cell; no collider).
+    #[arg(long)]
+    obj: Option<PathBuf>,
 }
 
 pub(crate) fn parse_grid(text: &str) -> Result<[u32; 2], String> {
@@ -276,8 +281,8 @@ fn plan_run(args: &RunArgs) -> Result<(Scene, backends::Backend, u32, WorkPlan)>
 
 fn run(args: RunArgs) -> Result<()> {
     let (scene, backend, frames, _) = plan_run(&args)?;
-    if let Some(png) = &args.png {
-        backends::output::check_writable(png)?;
+    for path in [&args.png, &args.obj].into_iter().flatten() {
+        backends::output::check_writable(path)?;
     }
     let mut sim = (backend.create)(&scene, &args.tuning.tuning())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;
@@ -291,22 +296,39 @@ fn run(args: RunArgs) -> Result<()> {
     progress.set_message(format!("{} on {}", scene.name, sim.backend_name()));
     let start = Instant::now();
     let mut counts = cloth_core::AdvanceCounts::default();
+    let [nx, ny] = scene.cloth.resolution;
+    let (mut most_crossings, mut counting) = (0, std::time::Duration::ZERO);
     for done in 0..frames {
         sim.advance(1).with_context(|| format!("the {} backend failed at frame {done}", backend.name))?;
         let c = sim.last_advance_counts();
         counts.frames += c.frames;
         counts.submissions += c.submissions;
         counts.host_waits += c.host_waits;
+        // Every frame's self-intersections, from a read-back of its positions; the counting is
+        // not part of the simulation's time.
+        let positions = sim.read_state()?.positions;
+        let t = Instant::now();
+        most_crossings = most_crossings.max(intersections::count(&positions, nx, ny));
+        counting += t.elapsed();
         progress.set_position(done as u64 + 1);
     }
     let state = sim.read_state()?;
-    let wall = start.elapsed();
+    let wall = start.elapsed().saturating_sub(counting);
     progress.finish_and_clear();
+    let at_end = intersections::count(&state.positions, nx, ny);
+    let self_intersections = report::SelfIntersections { at_end, max: most_crossings.max(at_end) };
     let diagnostics = sim.diagnostics()?;
     let model = ClothModel::new(&scene);
     let energy = Energy::of(&model, &state);
-    let measured =
-        report::Measured { state: &state, diagnostics: &diagnostics, counts: &counts, energy: &energy, frames, wall };
+    let measured = report::Measured {
+        state: &state,
+        diagnostics: &diagnostics,
+        counts: &counts,
+        energy: &energy,
+        frames,
+        wall,
+        self_intersections,
+    };
     let report = report::Report::new(&*sim, &model, &measured);
     if args.json {
         out!("{}", serde_json::to_string_pretty(&report)?)?;
@@ -317,6 +339,21 @@ fn run(args: RunArgs) -> Result<()> {
         render::write_png(&model, &state, png, 800, 600)?;
         if !args.json {
             out!("picture     {}", png.display())?;
+        }
+    }
+    if let Some(obj) = &args.obj {
+        let comment = format!(
+            "cloth '{}': {nx} x {ny} vertices at t = {:.4} s on {}, m\ntwo triangles a cell, split along (i, j)-(i+1, j+1)",
+            scene.name,
+            state.time_s,
+            sim.backend_name()
+        );
+        backends::output::write_atomically(
+            obj,
+            cloth_core::export::wavefront_obj(&state.positions, nx, ny, &comment).as_bytes(),
+        )?;
+        if !args.json {
+            out!("mesh        {}", obj.display())?;
         }
     }
     if report.nan_count > 0 {

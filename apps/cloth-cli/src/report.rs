@@ -13,6 +13,16 @@ pub struct SpringCounts {
     pub bend: usize,
 }
 
+/// How many times the cloth passes through itself ([`cloth_core::intersections`]).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct SelfIntersections {
+    /// Edge–triangle crossings in the final state.
+    #[serde(rename = "final")]
+    pub at_end: usize,
+    /// The most crossings in any frame of the run, the final one included.
+    pub max: usize,
+}
+
 /// What a run measured.
 pub struct Measured<'a> {
     pub state: &'a ClothState,
@@ -21,6 +31,7 @@ pub struct Measured<'a> {
     pub energy: &'a Energy,
     pub frames: u32,
     pub wall: Duration,
+    pub self_intersections: SelfIntersections,
 }
 
 /// What `cloth run` reports.
@@ -40,9 +51,13 @@ pub struct Report {
     pub max_penetration_m: f64,
     pub max_penetration_fraction_of_radius: Option<f64>,
     pub nan_count: usize,
+    /// Edge–triangle crossings of the cloth through itself, at the end and at most in a frame.
+    pub self_intersections: SelfIntersections,
     pub final_kinetic_energy_j: f64,
     pub final_total_energy_j: f64,
     pub final_centroid_m: [f64; 3],
+    /// Wall-clock time per frame, the per-frame read-back the self-intersection count needs
+    /// included, the counting itself not, ms.
     pub wall_ms_per_frame: f64,
     /// Submissions per frame, counted over the run's `advance` calls.
     pub submissions_per_frame: f64,
@@ -55,7 +70,7 @@ pub struct Report {
 
 impl Report {
     pub fn new(sim: &dyn Simulator, model: &ClothModel, run: &Measured<'_>) -> Self {
-        let Measured { state, diagnostics, counts, energy, frames, wall } = *run;
+        let Measured { state, diagnostics, counts, energy, frames, wall, self_intersections } = *run;
         let scene = &model.scene;
         let [structural, shear, bend] = model.spring_counts();
         let min_radius = scene.spheres.iter().map(|s| s.radius).fold(f64::INFINITY, f64::min);
@@ -76,6 +91,7 @@ impl Report {
                 .is_finite()
                 .then(|| diagnostics.max_penetration_m / min_radius),
             nan_count: state.non_finite_count(),
+            self_intersections,
             final_kinetic_energy_j: energy.kinetic,
             final_total_energy_j: energy.total(),
             final_centroid_m: state.centroid(),
@@ -112,6 +128,11 @@ impl Report {
             }
             None => out!("contact     no sphere"),
         }?;
+        out!(
+            "self        {} edge-triangle crossings of the cloth through itself at the end, at most {} in a frame",
+            self.self_intersections.at_end,
+            self.self_intersections.max
+        )?;
         out!(
             "state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}",
             c[0],

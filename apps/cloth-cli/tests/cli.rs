@@ -44,6 +44,10 @@ fn run_json_reports_every_documented_field() {
     assert_eq!(v["frames"], 20);
     assert_eq!(v["nan_count"], 0);
     assert_eq!(v["final_centroid_m"].as_array().unwrap().len(), 3);
+    // Exactly the two counts, the maximum over every frame at least the final one.
+    let crossings = v["self_intersections"].as_object().expect("self_intersections");
+    assert_eq!(crossings.keys().collect::<Vec<_>>(), ["final", "max"]);
+    assert!(crossings["max"].as_u64().unwrap() >= crossings["final"].as_u64().unwrap(), "{v}");
 }
 
 #[test]
@@ -53,6 +57,28 @@ fn run_writes_a_png_of_the_cloth() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let bytes = std::fs::read(&path).unwrap();
     assert_eq!(&bytes[1..4], b"PNG");
+    let _ = std::fs::remove_file(path);
+}
+
+/// `--obj` writes the final cloth as a Wavefront OBJ: a vertex and a normal per cloth vertex, two
+/// triangles a cell, nothing else; the vertices are the final positions (the JSON's centroid).
+#[test]
+fn run_writes_the_cloth_as_an_obj() {
+    let path = std::env::temp_dir().join(format!("cloth-cli-test-{}.obj", std::process::id()));
+    let v = json(&["run", "--frames", "10", "--grid", "9x7", "--json", "--obj", path.to_str().unwrap()]);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let lines = |prefix: &str| text.lines().filter(|l| l.starts_with(prefix)).collect::<Vec<_>>();
+    assert_eq!((lines("v ").len(), lines("vn ").len(), lines("f ").len()), (63, 63, 2 * 8 * 6));
+    assert!(text.lines().all(|l| ["#", "v ", "vn ", "f "].iter().any(|p| l.starts_with(p))), "{text}");
+    let mut centroid = [0.0f64; 3];
+    for l in lines("v ") {
+        for (c, x) in centroid.iter_mut().zip(l.split_whitespace().skip(1)) {
+            *c += x.parse::<f64>().unwrap() / 63.0;
+        }
+    }
+    for (k, c) in centroid.iter().enumerate() {
+        assert!((c - v["final_centroid_m"][k].as_f64().unwrap()).abs() < 1e-5, "{centroid:?} {v}");
+    }
     let _ = std::fs::remove_file(path);
 }
 

@@ -16,7 +16,9 @@
 //! * [`integrator`]: semi-implicit Euler (the model's), velocity Verlet, RK4;
 //! * [`stability`]: the largest stable substep;
 //! * [`simulator`]: the [`Simulator`] trait every backend implements;
-//! * [`energy`]: kinetic, elastic, gravitational and contact energy.
+//! * [`energy`]: kinetic, elastic, gravitational and contact energy;
+//! * [`intersections`]: where the cloth passes through itself, counted exactly;
+//! * [`export`]: the cloth as a Wavefront OBJ.
 //!
 //! ```
 //! use cloth_core::{Scene, Simulator, CpuSimulator};
@@ -37,9 +39,11 @@ pub mod constraints;
 pub mod effects;
 pub mod energy;
 pub mod error;
+pub mod export;
 pub mod forces;
 pub mod grid;
 pub mod integrator;
+pub mod intersections;
 pub mod model;
 pub mod motion;
 pub mod quantities;
