@@ -148,6 +148,13 @@ fn fs_cloth(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<
     return vec4<f32>(shade(n, color), 1.0);
 }
 
+// A cloth triangle a cloth edge passes through: red on both sides.
+@fragment
+fn fs_crossed(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    let n = select(-normalize(in.normal), normalize(in.normal), front);
+    return vec4<f32>(shade(n, vec3<f32>(0.95, 0.05, 0.05)), 1.0);
+}
+
 @fragment
 fn fs_wire(in: VsOut) -> @location(0) vec4<f32> {
     return vec4<f32>(0.08, 0.08, 0.1, 1.0);

@@ -74,6 +74,8 @@ pub struct Runtime {
     model: ClothModel,
     /// Last state read back: drawn for host backends, and the last good state to fall back to.
     host_state: Option<ClothState>,
+    /// The triangles crossed by a cloth edge in the last sampled state, drawn red.
+    crossed_triangles: Vec<[u32; 3]>,
     backends: Vec<BackendStatus>,
     renderer: Option<ViewRenderer>,
     render_state: Option<eframe::egui_wgpu::RenderState>,
@@ -166,6 +168,7 @@ impl InspectorApp {
                 sim: None,
                 model: ClothModel::new(&state.scene),
                 host_state: None,
+                crossed_triangles: Vec::new(),
                 backends,
                 renderer,
                 render_state,
@@ -223,6 +226,23 @@ impl InspectorApp {
 
     /// (Re)creates the simulator of the current backend from the scene's initial state. Falls
     /// back to the CPU when the backend cannot start.
+    /// Counts the self-intersections of `state` and keeps the crossed triangles to draw, or
+    /// `None` (and nothing to draw) above [`MAX_COUNTED_VERTICES`].
+    fn count_crossings(&mut self, state: &ClothState) -> Option<usize> {
+        let [nx, ny] = [self.runtime.model.grid.nx, self.runtime.model.grid.ny];
+        self.runtime.crossed_triangles.clear();
+        if state.positions.len() > MAX_COUNTED_VERTICES || state.positions.len() != (nx * ny) as usize {
+            return None;
+        }
+        let crossings = cloth_core::intersections::crossings(&state.positions, nx, ny);
+        let triangles = cloth_core::intersections::triangles(nx, ny);
+        let mut crossed: Vec<u32> = crossings.iter().map(|c| c.triangle).collect();
+        crossed.sort_unstable();
+        crossed.dedup();
+        self.runtime.crossed_triangles = crossed.into_iter().map(|t| triangles[t as usize]).collect();
+        Some(crossings.len())
+    }
+
     fn rebuild(&mut self) {
         let name = self.state.backend.clone();
         let sim = match self.create(&name) {
@@ -243,6 +263,7 @@ impl InspectorApp {
             Err(e) => self.runtime.notices.push(format!("cannot start any backend: {e}")),
         }
         self.runtime.stats.clear();
+        self.runtime.crossed_triangles.clear();
     }
 
     /// Hands the running cloth to another backend: read its state, start the new backend, write
@@ -348,6 +369,7 @@ impl InspectorApp {
                 self.runtime.sim_time_s = self.runtime.host_state.as_ref().map_or(0.0, |s| s.time_s);
                 self.runtime.sim = Some(sim);
                 self.runtime.stats.clear();
+                self.runtime.crossed_triangles.clear();
             }
             Err(e) => {
                 let (field, fix) = match e {
@@ -399,11 +421,13 @@ impl InspectorApp {
                 // A backend tracks the deepest penetration since it was created; keep the running
                 // maximum across backend switches.
                 let previous = self.runtime.stats.samples.back().map_or(0.0, |s| s.max_penetration_m);
+                let self_intersections = self.count_crossings(&state);
                 self.runtime.stats.push(Sample {
                     time_s: state.time_s,
                     kinetic_j: energy.kinetic,
                     elastic_j: energy.elastic.iter().sum(),
                     max_penetration_m: diagnostics.max_penetration_m.max(previous),
+                    self_intersections,
                 });
                 if state.non_finite_count() > 0 {
                     self.state.playing = false;
@@ -488,6 +512,7 @@ impl InspectorApp {
             wireframe: self.state.wireframe,
             source,
             time_s: self.runtime.sim_time_s,
+            crossed_triangles: &self.runtime.crossed_triangles,
         };
         let texture = renderer.render(rs, size, &self.runtime.model, &inputs);
         ui.painter().image(
@@ -582,6 +607,10 @@ impl InspectorApp {
 pub fn hand_over(state: &ClothState, to: &mut dyn Simulator) -> Result<(), SimError> {
     to.write_state(state)
 }
+
+/// Largest cloth whose self-intersections the inspector counts at every sample (512²): the count
+/// runs on the UI thread, in time proportional to the vertices.
+pub const MAX_COUNTED_VERTICES: usize = 512 * 512;
 
 /// The inspector runs a frame at a time for as long as it is open: one frame of `scene` must be
 /// work `backend` finishes in minutes (its work budget), or the window would stop answering.

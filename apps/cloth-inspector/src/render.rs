@@ -133,6 +133,8 @@ pub struct ViewInputs<'a> {
     pub source: Source<'a>,
     /// Simulated time of the drawn state, s: where moving spheres and pins are drawn.
     pub time_s: f64,
+    /// Cloth triangles a cloth edge passes through, drawn red over the cloth.
+    pub crossed_triangles: &'a [[u32; 3]],
 }
 
 struct Target {
@@ -160,6 +162,7 @@ pub struct ViewRenderer {
     layout: wgpu::BindGroupLayout,
     cloth: wgpu::RenderPipeline,
     wire: wgpu::RenderPipeline,
+    crossed: wgpu::RenderPipeline,
     instances: wgpu::RenderPipeline,
     lines: wgpu::RenderPipeline,
     camera: wgpu::Buffer,
@@ -250,7 +253,8 @@ impl ViewRenderer {
                         fs: &str,
                         buffers: &[Option<wgpu::VertexBufferLayout>],
                         topology: wgpu::PrimitiveTopology,
-                        bias: i32| {
+                        bias: i32,
+                        through_everything: bool| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&pipeline_layout),
@@ -273,8 +277,12 @@ impl ViewRenderer {
                 primitive: wgpu::PrimitiveState { topology, cull_mode: None, ..Default::default() },
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                    depth_write_enabled: Some(!through_everything),
+                    depth_compare: Some(if through_everything {
+                        wgpu::CompareFunction::Always
+                    } else {
+                        wgpu::CompareFunction::LessEqual
+                    }),
                     stencil: Default::default(),
                     bias: wgpu::DepthBiasState { constant: bias, slope_scale: 0.0, clamp: 0.0 },
                 }),
@@ -302,9 +310,28 @@ impl ViewRenderer {
         })];
         // The cloth's triangles are pushed back slightly so the wireframe drawn over them wins the
         // depth test (line topologies cannot carry a depth bias).
-        let cloth = pipeline("cloth pipeline", "vs_cloth", "fs_cloth", &[], wgpu::PrimitiveTopology::TriangleList, 2);
-        let wire =
-            pipeline("cloth wireframe pipeline", "vs_cloth", "fs_wire", &[], wgpu::PrimitiveTopology::LineList, 0);
+        let cloth =
+            pipeline("cloth pipeline", "vs_cloth", "fs_cloth", &[], wgpu::PrimitiveTopology::TriangleList, 2, false);
+        // The crossed triangles lie where one sheet of the cloth passes through another, mostly
+        // hidden inside the fold: they are drawn through everything, so the view shows where.
+        let crossed = pipeline(
+            "crossed triangles pipeline",
+            "vs_cloth",
+            "fs_crossed",
+            &[],
+            wgpu::PrimitiveTopology::TriangleList,
+            0,
+            true,
+        );
+        let wire = pipeline(
+            "cloth wireframe pipeline",
+            "vs_cloth",
+            "fs_wire",
+            &[],
+            wgpu::PrimitiveTopology::LineList,
+            0,
+            false,
+        );
         let instances = pipeline(
             "sphere pipeline",
             "vs_instance",
@@ -312,9 +339,17 @@ impl ViewRenderer {
             &mesh_layout,
             wgpu::PrimitiveTopology::TriangleList,
             0,
+            false,
         );
-        let lines =
-            pipeline("ground pipeline", "vs_line", "fs_line", &line_layout, wgpu::PrimitiveTopology::LineList, 0);
+        let lines = pipeline(
+            "ground pipeline",
+            "vs_line",
+            "fs_line",
+            &line_layout,
+            wgpu::PrimitiveTopology::LineList,
+            0,
+            false,
+        );
         let buffer = |label: &str, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
         };
@@ -346,6 +381,7 @@ impl ViewRenderer {
             layout,
             cloth,
             wire,
+            crossed,
             instances,
             lines,
             camera: buffer("view camera", size_of::<CameraUniform>() as u64, copy_uniform),
@@ -542,6 +578,13 @@ impl ViewRenderer {
                 wgpu::BindGroupEntry { binding: 4, resource: self.spheres.as_entire_binding() },
             ],
         });
+        let crossed = (!inputs.crossed_triangles.is_empty()).then(|| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("view crossed triangles"),
+                contents: bytemuck::cast_slice(inputs.crossed_triangles),
+                usage: wgpu::BufferUsages::INDEX,
+            })
+        });
         let (triangle_count, line_count) = (mesh.triangle_count, mesh.line_count);
         let (triangles, lines) = (mesh.triangles.clone(), mesh.lines.clone());
         self.ensure_target(rs, size);
@@ -582,6 +625,11 @@ impl ViewRenderer {
             pass.set_pipeline(&self.cloth);
             pass.set_index_buffer(triangles.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..triangle_count, 0, 0..1);
+            if let Some(crossed) = &crossed {
+                pass.set_pipeline(&self.crossed);
+                pass.set_index_buffer(crossed.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..3 * inputs.crossed_triangles.len() as u32, 0, 0..1);
+            }
             if inputs.wireframe {
                 pass.set_pipeline(&self.wire);
                 pass.set_index_buffer(lines.slice(..), wgpu::IndexFormat::Uint32);

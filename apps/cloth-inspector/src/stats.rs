@@ -13,6 +13,9 @@ pub struct Sample {
     pub elastic_j: f64,
     /// Deepest penetration so far, m.
     pub max_penetration_m: f64,
+    /// Edge–triangle crossings of the cloth through itself (`None`: not counted, the grid is
+    /// larger than [`crate::app::MAX_COUNTED_VERTICES`]).
+    pub self_intersections: Option<usize>,
 }
 
 /// Rolling history and the latest timings.

@@ -30,6 +30,23 @@ pub fn show(ui: &mut egui::Ui, stats: &Stats, scene: &Scene) {
         plot.line(Line::new("kinetic", series(|s| s.kinetic_j)));
         plot.line(Line::new("elastic", series(|s| s.elastic_j)));
     });
+    match stats.samples.back().and_then(|s| s.self_intersections) {
+        Some(0) => ui.label("Self-intersections: none (no cloth edge passes through a cloth triangle)"),
+        Some(n) => ui.colored_label(
+            egui::Color32::from_rgb(220, 40, 40),
+            format!("Self-intersections: {n} edge-triangle crossings (the crossed triangles in red, drawn through the cloth)"),
+        ),
+        None => ui.label(format!(
+            "Self-intersections: not counted above {} vertices (cloth run --json counts them)",
+            crate::app::MAX_COUNTED_VERTICES
+        )),
+    }
+    .on_hover_text("Counted exactly on the last sampled state (docs/model.md, Self-intersections)");
+    if stats.samples.iter().any(|s| s.self_intersections.is_some()) {
+        Plot::new("self-intersections").height(80.0).show(ui, |plot| {
+            plot.line(Line::new("crossings", series(|s| s.self_intersections.map_or(f64::NAN, |n| n as f64))));
+        });
+    }
     ui.label("Max penetration (mm) against simulated time (s)");
     Plot::new("penetration").height(120.0).show(ui, |plot| {
         plot.line(Line::new("max penetration", series(|s| s.max_penetration_m * 1e3)));
