@@ -13,14 +13,16 @@ pub struct SpringCounts {
     pub bend: usize,
 }
 
-/// How many times the cloth passes through itself ([`cloth_core::intersections`]).
+/// How many times the cloth passes through itself ([`cloth_core::intersections`]); `None`
+/// (`null`) where a cloth torn across itself could not be counted.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct SelfIntersections {
     /// Edge–triangle crossings in the final state.
     #[serde(rename = "final")]
-    pub at_end: usize,
-    /// The most crossings in any frame of the run, the final one included.
-    pub max: usize,
+    pub at_end: Option<usize>,
+    /// The most crossings in any frame counted (every frame unless `--count-every` says
+    /// otherwise), the final one included (`None` if a frame could not be counted).
+    pub max: Option<usize>,
 }
 
 /// What a run measured.
@@ -128,11 +130,17 @@ impl Report {
             }
             None => out!("contact     no sphere"),
         }?;
-        out!(
-            "self        {} edge-triangle crossings of the cloth through itself at the end, at most {} in a frame",
-            self.self_intersections.at_end,
-            self.self_intersections.max
-        )?;
+        match (self.self_intersections.at_end, self.self_intersections.max) {
+            (Some(n), Some(most)) => out!(
+                "self        {n} edge-triangle crossings of the cloth through itself at the end, at most {most} in a \
+                 frame counted"
+            ),
+            (at_end, _) => out!(
+                "self        not counted in every frame: the cloth is torn across itself (the step is probably \
+                 unstable){}",
+                at_end.map_or(String::new(), |n| format!("; {n} crossings at the end"))
+            ),
+        }?;
         out!(
             "state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}",
             c[0],

@@ -227,14 +227,15 @@ impl InspectorApp {
     /// (Re)creates the simulator of the current backend from the scene's initial state. Falls
     /// back to the CPU when the backend cannot start.
     /// Counts the self-intersections of `state` and keeps the crossed triangles to draw, or
-    /// `None` (and nothing to draw) above [`MAX_COUNTED_VERTICES`].
+    /// `None` (and nothing to draw) above [`MAX_COUNTED_VERTICES`] or for a cloth torn across
+    /// itself ([`cloth_core::intersections::TooTangled`]).
     fn count_crossings(&mut self, state: &ClothState) -> Option<usize> {
         let [nx, ny] = [self.runtime.model.grid.nx, self.runtime.model.grid.ny];
         self.runtime.crossed_triangles.clear();
         if state.positions.len() > MAX_COUNTED_VERTICES || state.positions.len() != (nx * ny) as usize {
             return None;
         }
-        let crossings = cloth_core::intersections::crossings(&state.positions, nx, ny);
+        let crossings = cloth_core::intersections::crossings(&state.positions, nx, ny).ok()?;
         let triangles = cloth_core::intersections::triangles(nx, ny);
         let mut crossed: Vec<u32> = crossings.iter().map(|c| c.triangle).collect();
         crossed.sort_unstable();

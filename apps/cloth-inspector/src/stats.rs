@@ -14,7 +14,7 @@ pub struct Sample {
     /// Deepest penetration so far, m.
     pub max_penetration_m: f64,
     /// Edge–triangle crossings of the cloth through itself (`None`: not counted, the grid is
-    /// larger than [`crate::app::MAX_COUNTED_VERTICES`]).
+    /// larger than [`crate::app::MAX_COUNTED_VERTICES`] or the cloth is torn across itself).
     pub self_intersections: Option<usize>,
 }
 

@@ -37,7 +37,8 @@ pub fn show(ui: &mut egui::Ui, stats: &Stats, scene: &Scene) {
             format!("Self-intersections: {n} edge-triangle crossings (the crossed triangles in red, drawn through the cloth)"),
         ),
         None => ui.label(format!(
-            "Self-intersections: not counted above {} vertices (cloth run --json counts them)",
+            "Self-intersections: not counted (above {} vertices, where cloth run --json counts them, or the \
+             cloth is torn across itself)",
             crate::app::MAX_COUNTED_VERTICES
         )),
     }
