@@ -220,22 +220,24 @@ void main() {
         if (EFFECT_WIND) {
             force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
         }
-        // Against a moving sphere, contact and friction act on the velocity relative to it.
+        // Against a moving collider, contact and friction act on the velocity relative to it.
         vec3 other_forces = force;
         // RK4's last stage: the normal of a contact whose friction holds the vertex (it sticks).
         bool stuck = false;
         vec3 stick_normal = vec3(0.0);
         if (EFFECT_CONTACT) {
-            for (uint s = 0u; s < params.sphere_count; s++) {
-                vec3 v_rel = v - sphere_velocity(spheres[s], t);
+            for (uint s = 0u; s < params.collider_count; s++) {
+                Collider collider = colliders[s];
+                vec3 v_rel = v - collider_velocity(collider, t);
                 vec3 normal;
                 vec3 contact;
-                if (contact_force(x, v_rel, sphere_center(spheres[s], t), spheres[s], normal, contact)) {
+                if (contact_force(v_rel, collider_surface(collider, collider_center(collider, t), x), collider.stiffness,
+                                  collider.damping, normal, contact)) {
                     force += contact;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v_rel, normal, mass, friction_dt, spheres[s].friction);
+                        force += friction_force(other_forces, v_rel, normal, mass, friction_dt, collider.friction);
                         if (STAGE == 6u && !stuck
-                            && friction_holds(other_forces, v_rel, normal, mass, friction_dt, spheres[s].friction)) {
+                            && friction_holds(other_forces, v_rel, normal, mass, friction_dt, collider.friction)) {
                             stuck = true;
                             stick_normal = normal;
                         }
@@ -311,9 +313,9 @@ void main() {
     if (EFFECT_CONTACT) {
         if (STAGE == 0u || STAGE == 1u || STAGE == 6u) {
             float deepest = 0.0;
-            for (uint s = 0u; s < params.sphere_count; s++) {
-                vec3 offset = x_new - sphere_center(spheres[s], t_out);
-                deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+            for (uint s = 0u; s < params.collider_count; s++) {
+                Collider collider = colliders[s];
+                deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
             }
             if (deepest > 0.0) {
                 atomicMax(max_penetration_bits, floatBitsToUint(deepest));

@@ -168,14 +168,16 @@ void main() {
                 }
                 vec3 other_forces = force;
                 if (EFFECT_CONTACT) {
-                    for (uint n = 0u; n < params.sphere_count; n++) {
-                        vec3 v_rel = v - sphere_velocity(spheres[n], t);
+                    for (uint n = 0u; n < params.collider_count; n++) {
+                        Collider collider = colliders[n];
+                        vec3 v_rel = v - collider_velocity(collider, t);
                         vec3 normal;
                         vec3 contact;
-                        if (contact_force(x, v_rel, sphere_center(spheres[n], t), spheres[n], normal, contact)) {
+                        if (contact_force(v_rel, collider_surface(collider, collider_center(collider, t), x), collider.stiffness,
+                                  collider.damping, normal, contact)) {
                             force += contact;
                             if (EFFECT_FRICTION) {
-                                force += friction_force(other_forces, v_rel, normal, mass, dt, spheres[n].friction);
+                                force += friction_force(other_forces, v_rel, normal, mass, dt, collider.friction);
                             }
                         }
                     }
@@ -192,9 +194,9 @@ void main() {
             // The deepest penetration at the end of each substep, over the output block.
             if (EFFECT_CONTACT) {
                 if (is_output) {
-                    for (uint n = 0u; n < params.sphere_count; n++) {
-                        vec3 offset = x_new - sphere_center(spheres[n], t_out);
-                        deepest = max(deepest, spheres[n].radius - sqrt(dot(offset, offset)));
+                    for (uint n = 0u; n < params.collider_count; n++) {
+                        Collider collider = colliders[n];
+                        deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
                     }
                 }
             }

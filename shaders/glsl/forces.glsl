@@ -30,20 +30,19 @@ vec3 air_drag_force(float mass, float rate, vec3 v) {
     return v * (-(mass * rate));
 }
 
-// F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
-// whose centre is at `center` now). Returns false outside.
-bool contact_force(vec3 x, vec3 v, vec3 center, Sphere s, out vec3 normal, out vec3 force) {
-    vec3 offset = x - center;
-    float distance = sqrt(dot(offset, offset));
-    float depth = s.radius - distance;
+// F_c = k_c d with d = −φ 1_n, plus damping of the normal approach velocity (v relative to the
+// collider), for every collider kind: the collider enters through its surface seen from x.
+// Returns false outside.
+bool contact_force(vec3 v, Surface surface, float stiffness, float damping, out vec3 normal, out vec3 force) {
+    float depth = -surface.distance;
     normal = vec3(0.0);
     force = vec3(0.0);
     if (depth <= 0.0) {
         return false;
     }
-    normal = distance > 0.0 ? offset * (1.0 / distance) : vec3(0.0, 1.0, 0.0);
+    normal = surface.normal;
     float approach = min(dot(v, normal), 0.0);
-    force = normal * (s.stiffness * depth - s.damping * approach);
+    force = normal * (stiffness * depth - damping * approach);
     return true;
 }
 
@@ -110,17 +109,18 @@ vec3 pin_velocity(float t) {
     return vec3(0.0);
 }
 
-// Where sphere `s` is at time t, and how fast it moves (still without MovingSpheres).
-vec3 sphere_center(Sphere s, float t) {
-    if (EFFECT_MOVING_SPHERES) {
-        return s.center + motion_displacement(s.velocity, s.amplitude, s.omega, t);
+// Where collider `c`'s centre is at time t, and how fast it moves (still without
+// MovingColliders).
+vec3 collider_center(Collider c, float t) {
+    if (EFFECT_MOVING_COLLIDERS) {
+        return c.center + motion_displacement(c.velocity, c.amplitude, c.omega, t);
     }
-    return s.center;
+    return c.center;
 }
 
-vec3 sphere_velocity(Sphere s, float t) {
-    if (EFFECT_MOVING_SPHERES) {
-        return motion_velocity(s.velocity, s.amplitude, s.omega, t);
+vec3 collider_velocity(Collider c, float t) {
+    if (EFFECT_MOVING_COLLIDERS) {
+        return motion_velocity(c.velocity, c.amplitude, c.omega, t);
     }
     return vec3(0.0);
 }

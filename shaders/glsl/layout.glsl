@@ -1,6 +1,6 @@
 // Buffer layouts shared by every kernel: the GLSL view of crates/cloth-gpu/src/layout.rs
 // (checked by tests/tests/shader_layouts.rs), with the two bindings all kernels share
-// (0: parameters, 1: spheres). Each kernel declares its other bindings.
+// (0: parameters, 1: colliders) and the colliders' signed distances (colliders.glsl). Each kernel declares its other bindings.
 
 // cloth_gpu::layout::GpuSimParams (160 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
@@ -11,7 +11,7 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     float substep_dt;   // s
     float air_drag;     // 1/s
     uint vertex_count;
-    uint sphere_count;
+    uint collider_count;
     uint grid_nx;
     uint grid_ny;
     uint effects;
@@ -22,18 +22,24 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
 } params;
 
-// cloth_gpu::layout::GpuSphere (64 bytes).
-struct Sphere {
-    vec3 center;        // m, at time 0
-    float radius;       // m
+// cloth_gpu::layout::GpuCollider (128 bytes): one collider of any kind.
+struct Collider {
+    vec3 center;        // m, at time 0 (a plane's point nearest the origin, a capsule's midpoint)
+    uint kind;          // 0 sphere, 1 plane, 2 capsule, 3 box
+    vec3 axis_x;        // a capsule's direction; a box's rotated x
+    float radius;       // m: sphere, capsule; a box's rounding
+    vec3 axis_y;        // a plane's normal; a box's rotated y
     float stiffness;    // k_c, N/m
+    vec3 axis_z;        // a box's rotated z
     float friction;     // c_f
+    vec3 extent;        // m: a capsule's half length (x); a box's half extents less the rounding
     float damping;      // N·s/m
-    float pad;
-    vec3 velocity;      // steady velocity, m/s (MovingSpheres)
+    vec3 velocity;      // steady velocity, m/s (MovingColliders)
     float omega;        // angular frequency of the oscillation, rad/s
     vec3 amplitude;     // amplitude of the oscillation, m
-    float pad2;
+    float thickness;    // m: thinnest width (XPBD sweeps longer paths only)
+    vec3 pad;
+    float tolerance;    // m: within this of the surface a vertex is on it
 };
 
 // cloth_gpu::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
@@ -44,5 +50,7 @@ struct Constraint {
     float rest_length;  // m
 };
 
-// The bindings every kernel shares: the parameters and the spheres.
-layout(set = 0, binding = 1, std430) readonly buffer Spheres { Sphere spheres[]; };
+// The bindings every kernel shares: the parameters and the colliders.
+layout(set = 0, binding = 1, std430) readonly buffer Colliders { Collider colliders[]; };
+
+#include "colliders.glsl"

@@ -8,7 +8,7 @@
 //   then XPBD_ITERATIONS times:
 //     pass 1 (per spring)   project the springs of one colour (springs of a colour share no
 //                           vertex, so one invocation per spring needs no atomics), once per colour;
-//     pass 2 (per vertex)   project the vertex out of the spheres (swept from its substep start,
+//     pass 2 (per vertex)   project the vertex out of the colliders (swept from its substep start,
 //                           so a long step cannot tunnel), summing the corrections;
 //   pass 3 (per vertex)     friction on the contacts' displacements, v = (x* − x)/Δt, deepest
 //                           penetration.
@@ -33,7 +33,7 @@ layout(set = 0, binding = 6, std430) buffer VelocitiesOut { vec4 velocities_out[
 layout(set = 0, binding = 7, std430) buffer MaxPenetration { uint max_penetration_bits; };
 // Each spring's Lagrange multiplier λ (in constraint order).
 layout(set = 0, binding = 8, std430) buffer Lambdas { float lambdas[]; };
-// Each vertex's summed sphere correction in this substep, m.
+// Each vertex's summed collider correction in this substep, m.
 layout(set = 0, binding = 9, std430) buffer NormalCorrections { float normal_corrections[]; };
 // cloth_gpu::layout::GpuColorRange (16 bytes): the colour pass 1 projects, selected by a
 // dynamic offset.
@@ -70,20 +70,19 @@ void project_spring(inout vec3 x_a, inout vec3 x_b, float inverse_mass_a, float 
     x_b = x_b - n * (inverse_mass_b * delta_lambda);
 }
 
-// The non-penetration constraint |x − c| ≥ r: move x to the surface, return the correction.
-float project_sphere(inout vec3 x, vec3 center, float radius) {
-    vec3 offset = x - center;
-    float distance = sqrt(dot(offset, offset));
-    float depth = radius - distance;
-    if (depth > 0.0 && distance > 0.0) {
-        x = x + offset * (depth / distance);
+// The non-penetration constraint φ(x) ≥ 0: move x by −φ 1_n, return the correction.
+float project_onto_surface(inout vec3 x, Surface surface) {
+    float depth = -surface.distance;
+    if (depth > 0.0) {
+        x = x + surface.normal * depth;
         return depth;
     }
     return 0.0;
 }
 
-// project_sphere made continuous: a path from x_start (outside) that went through the sphere and
-// out the far side is put back where it entered; a path ending inside is projected as usual.
+// project_onto_surface made continuous for a sphere: a path from x_start (outside) that went
+// through the sphere and out the far side is put back where it entered; a path ending inside is
+// projected as usual.
 float project_sphere_swept(inout vec3 x, vec3 x_start, vec3 center, float radius) {
     vec3 o = x_start - center;
     float outside_at_start = dot(o, o) - radius * radius;
@@ -105,18 +104,58 @@ float project_sphere_swept(inout vec3 x, vec3 x_start, vec3 center, float radius
         }
         return 0.0;
     }
-    return project_sphere(x, center, radius);
+    return project_onto_surface(x, sphere_surface(x, center, radius));
+}
+
+// Steps and stopping distance (of the thickness) of the sweep (cloth_core::constraints).
+const uint SWEEP_STEPS = 32u;
+const float SWEEP_TOLERANCE = 0.01;
+
+// Any collider, continuously (cloth_core::constraints::project_swept): the sphere exactly; a
+// plane by its end point; a capsule or box path longer than the collider is thick that ends
+// outside is sphere-traced from its start and stopped where it enters.
+float project_swept(inout vec3 x, vec3 x_start, Collider c, vec3 center) {
+    if (COLLIDER_SPHERE) {
+        if (c.kind == 0u) {
+            return project_sphere_swept(x, x_start, center, c.radius);
+        }
+    }
+    Surface end_ = collider_surface(c, center, x);
+    if (end_.distance > 0.0 && c.kind != 1u) {
+        vec3 d = x - x_start;
+        float len = sqrt(dot(d, d));
+        if (len > c.thickness && collider_surface(c, center, x_start).distance >= 0.0) {
+            float inverse_length = 1.0 / len;
+            float stop = c.thickness * SWEEP_TOLERANCE;
+            float s = 0.0;
+            for (uint k = 0u; k < SWEEP_STEPS; k++) {
+                vec3 p = x_start + d * s;
+                float phi = collider_surface(c, center, p).distance;
+                if (phi <= stop) {
+                    vec3 moved = x - p;
+                    x = p;
+                    return sqrt(dot(moved, moved));
+                }
+                s = s + phi * inverse_length;
+                if (s >= 1.0) {
+                    break;
+                }
+            }
+        }
+        return 0.0;
+    }
+    return project_onto_surface(x, end_);
 }
 
 // Coulomb friction in position form: the tangential part of the substep's displacement is undone
-// up to c_f times the normal correction (static: the vertex sticks), shortened by that beyond.
-vec3 contact_friction(vec3 x, vec3 x_start, vec3 center, float radius, float coefficient, float normal_correction) {
-    vec3 offset = x - center;
-    float distance = sqrt(dot(offset, offset));
-    if (distance <= 0.0 || distance > radius * 1.000001) {
+// up to c_f times the normal correction (static: the vertex sticks), shortened by that beyond;
+// only on the collider (φ within its tolerance).
+vec3 contact_friction(vec3 x, vec3 x_start, Surface surface, float tolerance, float coefficient,
+                      float normal_correction) {
+    if (surface.distance > tolerance) {
         return x;
     }
-    vec3 n = offset * (1.0 / distance);
+    vec3 n = surface.normal;
     vec3 dx = x - x_start;
     vec3 dx_t = dx - n * dot(dx, n);
     float slide = sqrt(dot(dx_t, dx_t));
@@ -177,7 +216,7 @@ void project_color(uint t) {
     positions_out[s.b] = vec4(x_b, pb.w);
 }
 
-void project_spheres(uint i) {
+void project_colliders(uint i) {
     vec4 p = positions_out[i];
     if (p.w == 0.0) {
         return;
@@ -186,11 +225,12 @@ void project_spheres(uint i) {
     float t_end = t + params.substep_dt;
     vec3 x = p.xyz;
     float correction = normal_corrections[i];
-    for (uint s = 0u; s < params.sphere_count; s++) {
-        // Where the sphere ends the substep, and the vertex's start carried along with it.
-        vec3 center = sphere_center(spheres[s], t_end);
-        vec3 x_start = positions_in[i].xyz + (center - sphere_center(spheres[s], t));
-        correction = correction + project_sphere_swept(x, x_start, center, spheres[s].radius);
+    for (uint s = 0u; s < params.collider_count; s++) {
+        // Where the collider ends the substep, and the vertex's start carried along with it.
+        Collider collider = colliders[s];
+        vec3 center = collider_center(collider, t_end);
+        vec3 x_start = positions_in[i].xyz + (center - collider_center(collider, t));
+        correction = correction + project_swept(x, x_start, collider, center);
     }
     positions_out[i] = vec4(x, p.w);
     normal_corrections[i] = correction;
@@ -207,10 +247,12 @@ void finish(uint i) {
         float correction = normal_corrections[i];
         if (EFFECT_FRICTION) {
             if (correction > 0.0) {
-                for (uint s = 0u; s < params.sphere_count; s++) {
-                    vec3 center = sphere_center(spheres[s], t_end);
-                    vec3 x_start = x0 + (center - sphere_center(spheres[s], t));
-                    x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
+                for (uint s = 0u; s < params.collider_count; s++) {
+                    Collider collider = colliders[s];
+                    vec3 center = collider_center(collider, t_end);
+                    vec3 x_start = x0 + (center - collider_center(collider, t));
+                    Surface surface = collider_surface(collider, center, x);
+                    x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
                 }
                 positions_out[i] = vec4(x, p.w);
             }
@@ -220,9 +262,9 @@ void finish(uint i) {
     velocities_out[i] = vec4(v, t_end);
     if (EFFECT_CONTACT) {
         float deepest = 0.0;
-        for (uint s = 0u; s < params.sphere_count; s++) {
-            vec3 offset = x - sphere_center(spheres[s], t_end);
-            deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+        for (uint s = 0u; s < params.collider_count; s++) {
+            Collider collider = colliders[s];
+            deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_end), x).distance);
         }
         if (deepest > 0.0) {
             atomicMax(max_penetration_bits, floatBitsToUint(deepest));
@@ -244,7 +286,7 @@ void main() {
         predict(t);
     } else if (XPBD_PASS == 2u) {
         if (EFFECT_CONTACT) {
-            project_spheres(t);
+            project_colliders(t);
         }
     } else {
         finish(t);

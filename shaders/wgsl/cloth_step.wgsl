@@ -13,7 +13,7 @@
 override STAGE: u32 = 0u;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
-@group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
+@group(0) @binding(1) var<storage, read> colliders: array<Collider>;
 // No spring list: the springs are computed from the grid (add_stencil_springs).
 @group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
 @group(0) @binding(3) var<storage, read> velocities_in: array<vec4<f32>>;
@@ -221,21 +221,23 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         if (EFFECT_WIND) {
             force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
         }
-        // Against a moving sphere, contact and friction act on the velocity relative to it.
+        // Against a moving collider, contact and friction act on the velocity relative to it.
         let other_forces = force;
         // RK4's last stage: the normal of a contact whose friction holds the vertex (it sticks).
         var stuck = false;
         var stick_normal = vec3<f32>(0.0);
         if (EFFECT_CONTACT) {
-            for (var s = 0u; s < params.sphere_count; s++) {
-                let v_rel = v - sphere_velocity(spheres[s], t);
-                let c = contact_force(x, v_rel, sphere_center(spheres[s], t), spheres[s]);
+            for (var s = 0u; s < params.collider_count; s++) {
+                let collider = colliders[s];
+                let v_rel = v - collider_velocity(collider, t);
+                let surface = collider_surface(collider, collider_center(collider, t), x);
+                let c = contact_force(v_rel, surface, collider.stiffness, collider.damping);
                 if (c.hit) {
                     force += c.force;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v_rel, c.normal, mass, friction_dt, spheres[s].friction);
+                        force += friction_force(other_forces, v_rel, c.normal, mass, friction_dt, collider.friction);
                         if (STAGE == 6u && !stuck
-                            && friction_holds(other_forces, v_rel, c.normal, mass, friction_dt, spheres[s].friction)) {
+                            && friction_holds(other_forces, v_rel, c.normal, mass, friction_dt, collider.friction)) {
                             stuck = true;
                             stick_normal = c.normal;
                         }
@@ -314,9 +316,9 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if (EFFECT_CONTACT) {
         if (STAGE == 0u || STAGE == 1u || STAGE == 6u) {
             var deepest = 0.0;
-            for (var s = 0u; s < params.sphere_count; s++) {
-                let offset = x_new - sphere_center(spheres[s], t_out);
-                deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+            for (var s = 0u; s < params.collider_count; s++) {
+                let collider = colliders[s];
+                deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
             }
             if (deepest > 0.0) {
                 atomicMax(&max_penetration_bits, bitcast<u32>(deepest));

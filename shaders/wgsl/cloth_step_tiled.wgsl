@@ -14,7 +14,7 @@ const TILE_CELLS: u32 = TILE_WIDTH * TILE_HEIGHT;
 const HALO: u32 = 2u * FUSED_SUBSTEPS;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
-@group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
+@group(0) @binding(1) var<storage, read> colliders: array<Collider>;
 @group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
 @group(0) @binding(3) var<storage, read> velocities_in: array<vec4<f32>>;  // w: the state's time, s
 @group(0) @binding(4) var<storage, read_write> positions_out: array<vec4<f32>>;
@@ -171,13 +171,15 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
                 }
                 let other_forces = force;
                 if (EFFECT_CONTACT) {
-                    for (var n = 0u; n < params.sphere_count; n++) {
-                        let v_rel = v - sphere_velocity(spheres[n], t);
-                        let contact = contact_force(x, v_rel, sphere_center(spheres[n], t), spheres[n]);
+                    for (var n = 0u; n < params.collider_count; n++) {
+                        let collider = colliders[n];
+                        let v_rel = v - collider_velocity(collider, t);
+                        let surface = collider_surface(collider, collider_center(collider, t), x);
+                        let contact = contact_force(v_rel, surface, collider.stiffness, collider.damping);
                         if (contact.hit) {
                             force += contact.force;
                             if (EFFECT_FRICTION) {
-                                force += friction_force(other_forces, v_rel, contact.normal, mass, dt, spheres[n].friction);
+                                force += friction_force(other_forces, v_rel, contact.normal, mass, dt, collider.friction);
                             }
                         }
                     }
@@ -194,9 +196,9 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
             // The deepest penetration at the end of each substep, over the output block.
             if (EFFECT_CONTACT) {
                 if (is_output) {
-                    for (var n = 0u; n < params.sphere_count; n++) {
-                        let offset = x_new - sphere_center(spheres[n], t_out);
-                        deepest = max(deepest, spheres[n].radius - sqrt(dot(offset, offset)));
+                    for (var n = 0u; n < params.collider_count; n++) {
+                        let collider = colliders[n];
+                        deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
                     }
                 }
             }

@@ -1,5 +1,5 @@
-// Shared by every WGSL compute kernel of the cloth (the backend prepends it, after layout.wgsl,
-// to each): the effect constants and the force model.
+// Shared by every WGSL compute kernel of the cloth (the backend prepends it, after layout.wgsl
+// and colliders.wgsl, to each): the effect constants and the force model.
 //
 // The force model mirrors crates/cloth-core/src/forces.rs function by function and operation by
 // operation (same names, same order of the sums), so that f32 results agree with the CPU
@@ -19,7 +19,7 @@ override EFFECT_FRICTION: bool = true;
 override EFFECT_AIR_DRAG: bool = false;
 override EFFECT_WIND: bool = false;
 override EFFECT_MOVING_PINS: bool = false;
-override EFFECT_MOVING_SPHERES: bool = false;
+override EFFECT_MOVING_COLLIDERS: bool = false;
 override WORKGROUP_SIZE: u32 = 256u;
 // Any spring kind at all (one constant, so the branch on it is a constant too).
 override ANY_SPRINGS: bool = EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND;
@@ -58,24 +58,18 @@ struct Contact {
     force: vec3<f32>,
 }
 
-// F_c = k_c d, plus damping of the normal approach velocity (v relative to the sphere,
-// whose centre is at `center` now).
-fn contact_force(x: vec3<f32>, v: vec3<f32>, center: vec3<f32>, s: Sphere) -> Contact {
+// F_c = k_c d with d = −φ 1_n, plus damping of the normal approach velocity (v relative to the
+// collider), for every collider kind: the collider enters through its surface seen from x.
+fn contact_force(v: vec3<f32>, surface: Surface, stiffness: f32, damping: f32) -> Contact {
     var c: Contact;
-    let offset = x - center;
-    let distance = sqrt(dot(offset, offset));
-    let depth = s.radius - distance;
+    let depth = -surface.distance;
     c.hit = depth > 0.0;
     if (!c.hit) {
         return c;
     }
-    if (distance > 0.0) {
-        c.normal = offset * (1.0 / distance);
-    } else {
-        c.normal = vec3<f32>(0.0, 1.0, 0.0);
-    }
+    c.normal = surface.normal;
     let approach = min(dot(v, c.normal), 0.0);
-    c.force = c.normal * (s.stiffness * depth - s.damping * approach);
+    c.force = c.normal * (stiffness * depth - damping * approach);
     return c;
 }
 
@@ -144,17 +138,18 @@ fn pin_velocity(t: f32) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
-// Where sphere `s` is at time t, and how fast it moves (still without MovingSpheres).
-fn sphere_center(s: Sphere, t: f32) -> vec3<f32> {
-    if (EFFECT_MOVING_SPHERES) {
-        return s.center + motion_displacement(s.velocity, s.amplitude, s.omega, t);
+// Where collider `c`'s centre is at time t, and how fast it moves (still without
+// MovingColliders).
+fn collider_center(c: Collider, t: f32) -> vec3<f32> {
+    if (EFFECT_MOVING_COLLIDERS) {
+        return c.center + motion_displacement(c.velocity, c.amplitude, c.omega, t);
     }
-    return s.center;
+    return c.center;
 }
 
-fn sphere_velocity(s: Sphere, t: f32) -> vec3<f32> {
-    if (EFFECT_MOVING_SPHERES) {
-        return motion_velocity(s.velocity, s.amplitude, s.omega, t);
+fn collider_velocity(c: Collider, t: f32) -> vec3<f32> {
+    if (EFFECT_MOVING_COLLIDERS) {
+        return motion_velocity(c.velocity, c.amplitude, c.omega, t);
     }
     return vec3<f32>(0.0);
 }

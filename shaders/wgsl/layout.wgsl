@@ -11,7 +11,7 @@ struct SimParams {
     substep_dt: f32,         // s
     air_drag: f32,           // 1/s
     vertex_count: u32,
-    sphere_count: u32,
+    collider_count: u32,
     grid_nx: u32,
     grid_ny: u32,
     effects: u32,
@@ -22,18 +22,24 @@ struct SimParams {
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
 }
 
-// cloth_gpu::layout::GpuSphere (64 bytes).
-struct Sphere {
-    center: vec3<f32>,       // m, at time 0
-    radius: f32,             // m
+// cloth_gpu::layout::GpuCollider (128 bytes): one collider of any kind.
+struct Collider {
+    center: vec3<f32>,       // m, at time 0 (a plane's point nearest the origin, a capsule's midpoint)
+    kind: u32,               // 0 sphere, 1 plane, 2 capsule, 3 box
+    axis_x: vec3<f32>,       // a capsule's direction; a box's rotated x
+    radius: f32,             // m: sphere, capsule; a box's rounding
+    axis_y: vec3<f32>,       // a plane's normal; a box's rotated y
     stiffness: f32,          // k_c, N/m
+    axis_z: vec3<f32>,       // a box's rotated z
     friction: f32,           // c_f
+    extent: vec3<f32>,       // m: a capsule's half length (x); a box's half extents less the rounding
     damping: f32,            // N·s/m
-    pad: f32,
-    velocity: vec3<f32>,     // steady velocity, m/s (MovingSpheres)
+    velocity: vec3<f32>,     // steady velocity, m/s (MovingColliders)
     omega: f32,              // angular frequency of the oscillation, rad/s
     amplitude: vec3<f32>,    // amplitude of the oscillation, m
-    pad2: f32,
+    thickness: f32,          // m: thinnest width (XPBD sweeps longer paths only)
+    pad: vec3<f32>,
+    tolerance: f32,          // m: within this of the surface a vertex is on it
 }
 
 // cloth_gpu::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.

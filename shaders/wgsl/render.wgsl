@@ -1,6 +1,7 @@
 // The inspector's 3D view: the cloth straight from the simulation's position buffer (normals
-// and colours computed here, on the GPU), instanced spheres and pin markers, and a ground grid.
-// Prepended with layout.wgsl (the Sphere the simulation uploads, checked against the Rust type).
+// and colours computed here, on the GPU), the colliders and pin markers, and a ground grid.
+// Prepended with layout.wgsl (the Collider the simulation uploads, checked against the Rust type)
+// and colliders.wgsl (their signed distances, as the kernels evaluate them).
 
 struct Camera {
     view_proj: mat4x4<f32>,
@@ -13,7 +14,7 @@ struct ClothInfo {
     ny: u32,
     color_mode: u32,         // 0 plain, 1 strain, 2 contact, 3 speed
     strain_kind: u32,        // with strain: 0 structural, 1 shear, 2 bend
-    sphere_count: u32,
+    collider_count: u32,
     pad0: u32,
     pad1: u32,
     pad2: u32,
@@ -27,7 +28,7 @@ struct ClothInfo {
 @group(0) @binding(1) var<uniform> cloth: ClothInfo;
 @group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> velocities: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> spheres: array<Sphere>;   // at the drawn state's time
+@group(0) @binding(4) var<storage, read> colliders: array<Collider>;   // at the drawn state's time
 // cs_vertex_colors only: each vertex's colour, what vs_cloth draws it with.
 @group(0) @binding(5) var<storage, read_write> vertex_colors: array<vec4<f32>>;
 
@@ -48,18 +49,18 @@ fn ramp(t: f32) -> vec3<f32> {
                vec3<f32>(0.95, 0.2, 0.1), max(x * 2.0 - 1.0, 0.0));
 }
 
-// Contact state of a vertex at x moving at v: 0 free, 1 sticking (on a sphere, tangential speed
-// below 1 mm/s), 2 sliding (the inspector's render tests check it against the same rule on the
-// CPU).
+// Contact state of a vertex at x moving at v: 0 free, 1 sticking (on a collider, within 0.2% of
+// its size, its tolerance being 1e-6 of it; tangential speed below 1 mm/s), 2 sliding (the
+// inspector's render tests check it against the same rule on the CPU).
 fn contact_state(x: vec3<f32>, v: vec3<f32>) -> u32 {
     var state = 0u;
-    for (var s = 0u; s < cloth.sphere_count; s++) {
-        let offset = x - spheres[s].center;
-        let d = length(offset);
-        if (d < spheres[s].radius * 1.002) {
-            let nrm = offset / max(d, 1e-9);
+    for (var s = 0u; s < cloth.collider_count; s++) {
+        let c = colliders[s];
+        let surface = collider_surface(c, c.center, x);
+        if (surface.distance < c.tolerance * 2000.0) {
+            let nrm = surface.normal;
             let v_t = v - nrm * dot(v, nrm);
-            state = select(2u, 1u, length(v_t) < 1e-3);
+            state = select(2u, 1u, sqrt(dot(v_t, v_t)) < 1e-3);
         }
     }
     return state;

@@ -7,7 +7,7 @@
 //   then XPBD_ITERATIONS times:
 //     pass 1 (per spring)   project the springs of one colour (springs of a colour share no
 //                           vertex, so one invocation per spring needs no atomics), once per colour;
-//     pass 2 (per vertex)   project the vertex out of the spheres (swept from its substep start,
+//     pass 2 (per vertex)   project the vertex out of the colliders (swept from its substep start,
 //                           so a long step cannot tunnel), summing the corrections;
 //   pass 3 (per vertex)     friction on the contacts' displacements, v = (x* − x)/Δt, deepest
 //                           penetration.
@@ -17,7 +17,7 @@
 override XPBD_PASS: u32 = 0u;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
-@group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
+@group(0) @binding(1) var<storage, read> colliders: array<Collider>;
 @group(0) @binding(2) var<storage, read> constraints: array<Constraint>;
 // The state at the substep's start (w: 1 free, 0 pinned).
 @group(0) @binding(3) var<storage, read> positions_in: array<vec4<f32>>;
@@ -34,7 +34,7 @@ fn position_in(index: u32) -> vec3<f32> {
 @group(0) @binding(7) var<storage, read_write> max_penetration_bits: atomic<u32>;
 // Each spring's Lagrange multiplier λ (in constraint order).
 @group(0) @binding(8) var<storage, read_write> lambdas: array<f32>;
-// Each vertex's summed sphere correction in this substep, m.
+// Each vertex's summed collider correction in this substep, m.
 @group(0) @binding(9) var<storage, read_write> normal_corrections: array<f32>;
 // The colour pass 1 projects (selected by a dynamic offset).
 @group(0) @binding(10) var<uniform> color: ColorRange;
@@ -67,25 +67,24 @@ fn project_spring(x_a: vec3<f32>, x_b: vec3<f32>, inverse_mass_a: f32, inverse_m
     return r;
 }
 
-struct SphereProjection {
+struct Projection {
     x: vec3<f32>,
     depth: f32,
 }
 
-// The non-penetration constraint |x − c| ≥ r: move x to the surface, return the correction.
-fn project_sphere(x: vec3<f32>, center: vec3<f32>, radius: f32) -> SphereProjection {
-    let offset = x - center;
-    let distance = sqrt(dot(offset, offset));
-    let depth = radius - distance;
-    if (depth > 0.0 && distance > 0.0) {
-        return SphereProjection(x + offset * (depth / distance), depth);
+// The non-penetration constraint φ(x) ≥ 0: move x by −φ 1_n, return the correction.
+fn project_onto_surface(x: vec3<f32>, surface: Surface) -> Projection {
+    let depth = -surface.distance;
+    if (depth > 0.0) {
+        return Projection(x + surface.normal * depth, depth);
     }
-    return SphereProjection(x, 0.0);
+    return Projection(x, 0.0);
 }
 
-// project_sphere made continuous: a path from x_start (outside) that went through the sphere and
-// out the far side is put back where it entered; a path ending inside is projected as usual.
-fn project_sphere_swept(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, radius: f32) -> SphereProjection {
+// project_onto_surface made continuous for a sphere: a path from x_start (outside) that went
+// through the sphere and out the far side is put back where it entered; a path ending inside is
+// projected as usual.
+fn project_sphere_swept(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, radius: f32) -> Projection {
     let o = x_start - center;
     let outside_at_start = dot(o, o) - radius * radius;
     let end = x - center;
@@ -100,24 +99,62 @@ fn project_sphere_swept(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, rad
             if (s <= 1.0) {
                 let entry = x_start + d * s;
                 let moved = x - entry;
-                return SphereProjection(entry, sqrt(dot(moved, moved)));
+                return Projection(entry, sqrt(dot(moved, moved)));
             }
         }
-        return SphereProjection(x, 0.0);
+        return Projection(x, 0.0);
     }
-    return project_sphere(x, center, radius);
+    return project_onto_surface(x, sphere_surface(x, center, radius));
+}
+
+// Steps and stopping distance (of the thickness) of the sweep (cloth_core::constraints).
+const SWEEP_STEPS: u32 = 32u;
+const SWEEP_TOLERANCE: f32 = 0.01;
+
+// Any collider, continuously (cloth_core::constraints::project_swept): the sphere exactly; a
+// plane by its end point; a capsule or box path longer than the collider is thick that ends
+// outside is sphere-traced from its start and stopped where it enters.
+fn project_swept(x: vec3<f32>, x_start: vec3<f32>, c: Collider, center: vec3<f32>) -> Projection {
+    if (COLLIDER_SPHERE) {
+        if (c.kind == 0u) {
+            return project_sphere_swept(x, x_start, center, c.radius);
+        }
+    }
+    let end = collider_surface(c, center, x);
+    if (end.distance > 0.0 && c.kind != 1u) {
+        let d = x - x_start;
+        let length = sqrt(dot(d, d));
+        if (length > c.thickness && collider_surface(c, center, x_start).distance >= 0.0) {
+            let inverse_length = 1.0 / length;
+            let stop = c.thickness * SWEEP_TOLERANCE;
+            var s = 0.0;
+            for (var k = 0u; k < SWEEP_STEPS; k++) {
+                let p = x_start + d * s;
+                let phi = collider_surface(c, center, p).distance;
+                if (phi <= stop) {
+                    let moved = x - p;
+                    return Projection(p, sqrt(dot(moved, moved)));
+                }
+                s = s + phi * inverse_length;
+                if (s >= 1.0) {
+                    break;
+                }
+            }
+        }
+        return Projection(x, 0.0);
+    }
+    return project_onto_surface(x, end);
 }
 
 // Coulomb friction in position form: the tangential part of the substep's displacement is undone
-// up to c_f times the normal correction (static: the vertex sticks), shortened by that beyond.
-fn contact_friction(x: vec3<f32>, x_start: vec3<f32>, center: vec3<f32>, radius: f32,
+// up to c_f times the normal correction (static: the vertex sticks), shortened by that beyond;
+// only on the collider (φ within its tolerance).
+fn contact_friction(x: vec3<f32>, x_start: vec3<f32>, surface: Surface, tolerance: f32,
                     coefficient: f32, normal_correction: f32) -> vec3<f32> {
-    let offset = x - center;
-    let distance = sqrt(dot(offset, offset));
-    if (distance <= 0.0 || distance > radius * 1.000001) {
+    if (surface.distance > tolerance) {
         return x;
     }
-    let n = offset * (1.0 / distance);
+    let n = surface.normal;
     let dx = x - x_start;
     let dx_t = dx - n * dot(dx, n);
     let slide = sqrt(dot(dx_t, dx_t));
@@ -180,7 +217,7 @@ fn project_color(t: u32) {
     positions_out[s.b] = vec4<f32>(r.x_b, pb.w);
 }
 
-fn project_spheres(i: u32) {
+fn project_colliders(i: u32) {
     let p = positions_out[i];
     if (p.w == 0.0) {
         return;
@@ -189,11 +226,12 @@ fn project_spheres(i: u32) {
     let t_end = t + params.substep_dt;
     var x = p.xyz;
     var correction = normal_corrections[i];
-    for (var s = 0u; s < params.sphere_count; s++) {
-        // Where the sphere ends the substep, and the vertex's start carried along with it.
-        let center = sphere_center(spheres[s], t_end);
-        let x_start = positions_in[i].xyz + (center - sphere_center(spheres[s], t));
-        let r = project_sphere_swept(x, x_start, center, spheres[s].radius);
+    for (var s = 0u; s < params.collider_count; s++) {
+        // Where the collider ends the substep, and the vertex's start carried along with it.
+        let collider = colliders[s];
+        let center = collider_center(collider, t_end);
+        let x_start = positions_in[i].xyz + (center - collider_center(collider, t));
+        let r = project_swept(x, x_start, collider, center);
         x = r.x;
         correction = correction + r.depth;
     }
@@ -212,10 +250,12 @@ fn finish(i: u32) {
         let correction = normal_corrections[i];
         if (EFFECT_FRICTION) {
             if (correction > 0.0) {
-                for (var s = 0u; s < params.sphere_count; s++) {
-                    let center = sphere_center(spheres[s], t_end);
-                    let x_start = x0 + (center - sphere_center(spheres[s], t));
-                    x = contact_friction(x, x_start, center, spheres[s].radius, spheres[s].friction, correction);
+                for (var s = 0u; s < params.collider_count; s++) {
+                    let collider = colliders[s];
+                    let center = collider_center(collider, t_end);
+                    let x_start = x0 + (center - collider_center(collider, t));
+                    let surface = collider_surface(collider, center, x);
+                    x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
                 }
                 positions_out[i] = vec4<f32>(x, p.w);
             }
@@ -225,9 +265,9 @@ fn finish(i: u32) {
     velocities_out[i] = vec4<f32>(v, t_end);
     if (EFFECT_CONTACT) {
         var deepest = 0.0;
-        for (var s = 0u; s < params.sphere_count; s++) {
-            let offset = x - sphere_center(spheres[s], t_end);
-            deepest = max(deepest, spheres[s].radius - sqrt(dot(offset, offset)));
+        for (var s = 0u; s < params.collider_count; s++) {
+            let collider = colliders[s];
+            deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_end), x).distance);
         }
         if (deepest > 0.0) {
             atomicMax(&max_penetration_bits, bitcast<u32>(deepest));
@@ -250,7 +290,7 @@ fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         case 0u: { predict(t); }
         case 2u: {
             if (EFFECT_CONTACT) {
-                project_spheres(t);
+                project_colliders(t);
             }
         }
         default: { finish(t); }

@@ -194,7 +194,7 @@ fn xpbd_matches_the_reference(backend: &Backend) {
         );
         assert!(d <= tolerance, "{name}: XPBD differs from the f32 reference by {d} m (tolerance {tolerance} m)");
         if name.contains("landing") {
-            let sphere = &scene.spheres[0];
+            let sphere = &scene.colliders[0].sphere().unwrap();
             let touching = state.positions.iter().any(|p| {
                 let d: f64 = (0..3).map(|k| (p[k] as f64 - sphere.center[k]).powi(2)).sum::<f64>().sqrt();
                 d < sphere.radius * 1.001
@@ -206,7 +206,7 @@ fn xpbd_matches_the_reference(backend: &Backend) {
     let frames = 90;
     let Some((state, penetration)) = run(backend, &scene, frames) else { return };
     assert_eq!(state.non_finite_count(), 0, "XPBD drape: NaN");
-    let sphere = &scene.spheres[0];
+    let sphere = &scene.colliders[0].sphere().unwrap();
     assert!(penetration < 0.02 * sphere.radius, "XPBD drape: max penetration {penetration} m");
     assert!(!is_off_the_sphere(&state, &scene), "XPBD drape: fell off, centroid {:?}", state.centroid());
     let (c, r) = (state.centroid(), reference_f32(&scene, frames).centroid());
@@ -250,7 +250,7 @@ fn driven_effects_match_the_reference(backend: &Backend) {
         sim.advance(18).unwrap();
         let state = sim.read_state().unwrap();
         assert_eq!(state.non_finite_count(), 0, "{integrator:?}: NaN after the ball");
-        let radius = scene.spheres[0].radius;
+        let radius = scene.colliders[0].sphere().unwrap().radius;
         let penetration = sim.diagnostics().unwrap().max_penetration_m;
         assert!(penetration < 0.1 * radius, "{integrator:?}: the ball went {penetration} m into the flag");
         let ball_z = -1.5 + 4.0 * state.time_s;
@@ -287,13 +287,16 @@ fn driven_effects_move_the_cloth(backend: &Backend) {
     assert!((moved - 0.2).abs() < 1e-4, "the pin moved {moved} m in 0.5 s at 0.4 m/s");
     assert!(state.centroid()[0] - still[0] > 0.05, "the cloth follows its pins: {:?}", state.centroid());
     let mut hit = base.clone();
-    hit.effects = hit.effects.with(Effect::SphereContact).with(Effect::MovingSpheres);
-    hit.spheres = vec![cloth_core::scene::SphereSpec {
-        center: [0.0, 1.2, -1.0],
-        radius: 0.2,
-        motion: cloth_core::scene::Motion { velocity: [0.0, 0.0, 3.0], ..Default::default() },
-        ..Default::default()
-    }];
+    hit.effects = hit.effects.with(Effect::Contact).with(Effect::MovingColliders);
+    hit.colliders = vec![
+        cloth_core::scene::SphereSpec {
+            center: [0.0, 1.2, -1.0],
+            radius: 0.2,
+            motion: cloth_core::scene::Motion { velocity: [0.0, 0.0, 3.0], ..Default::default() },
+            ..Default::default()
+        }
+        .into(),
+    ];
     let Some((state, _)) = run(backend, &hit, 30) else { return };
     assert!(state.centroid()[2] - still[2] > 0.05, "the ball pushed the cloth: {:?}", state.centroid());
 }
@@ -319,7 +322,7 @@ fn an_absent_effect_equals_zero_strength(backend: &Backend) {
             .effects
             .with(Effect::Wind)
             .with(Effect::MovingPins)
-            .with(Effect::MovingSpheres)
+            .with(Effect::MovingColliders)
             .with(Effect::AirDrag);
         zero_driven.wind =
             cloth_core::scene::WindSpec { velocity: [2.0, 0.0, 1.0], coefficient: 0.0, ..Default::default() };
@@ -330,10 +333,10 @@ fn an_absent_effect_equals_zero_strength(backend: &Backend) {
         zero_base.springs.structural.damping = 0.0;
         zero_base.springs.shear.damping = 0.0;
         zero_base.springs.bend.damping = 0.0;
-        zero_base.spheres[0].friction = 0.0;
+        zero_base.colliders[0].friction = 0.0;
         // Without gravity nothing happens: let the cloth start by moving the sphere up into it.
-        zero_base.effects = zero_base.effects.with(Effect::MovingSpheres);
-        zero_base.spheres[0].motion.velocity = [0.0, 1.5, 0.3];
+        zero_base.effects = zero_base.effects.with(Effect::MovingColliders);
+        zero_base.colliders[0].motion.velocity = [0.0, 1.5, 0.3];
         let mut absent_base = zero_base.clone();
         absent_base.effects =
             absent_base.effects.without(Effect::Gravity).without(Effect::SpringDamping).without(Effect::Friction);
@@ -538,7 +541,7 @@ fn a_wrong_gpu_tuning_is_refused_naming_the_field() {
 }
 
 fn is_off_the_sphere(state: &ClothState, scene: &Scene) -> bool {
-    let s = &scene.spheres[0];
+    let s = &scene.colliders[0].sphere().unwrap();
     let near = state.positions.iter().any(|p| {
         let d: f64 = (0..3).map(|k| (p[k] as f64 - s.center[k]).powi(2)).sum::<f64>().sqrt();
         d < s.radius * 1.1
@@ -553,7 +556,7 @@ fn long_horizon_outcomes_agree(backend: &Backend) {
         let Some((state, penetration)) = run(backend, &scene, frames) else { return };
         let reference = reference_f32(&scene, frames);
         assert_eq!(state.non_finite_count(), 0, "{name}: NaN");
-        let radius = scene.spheres[0].radius;
+        let radius = scene.colliders[0].sphere().unwrap().radius;
         assert!(penetration < 0.02 * radius, "{name}: max penetration {penetration} m");
         let off = is_off_the_sphere(&state, &scene);
         assert_eq!(off, name == "slide.ron", "{name}: off the sphere = {off}, centroid {:?}", state.centroid());
@@ -563,7 +566,7 @@ fn long_horizon_outcomes_agree(backend: &Backend) {
             let d = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f64>().sqrt();
             eprintln!("{}: {name}: centroid {c:?}, reference {r:?}, distance {d:.3e} m", backend.name);
             assert_resting_centroid_agrees(name, c, r);
-            assert!(c[1] > scene.spheres[0].center[1], "{name}: rests above the sphere's centre");
+            assert!(c[1] > scene.colliders[0].sphere().unwrap().center[1], "{name}: rests above the sphere's centre");
         }
     }
 }
@@ -594,17 +597,19 @@ fn moving_or_resizing_the_sphere_moves_the_rest_position(backend: &Backend) {
     // cloth) from it, which on a 0.5 m sphere is r − √(r² − 0.094²) ≈ 9 mm lower: allow 15 mm
     // for the top, and for the difference of two tops.
     const TOP_TOLERANCE_M: f64 = 0.015;
-    let sphere_top = base.spheres[0].center[1] + base.spheres[0].radius;
+    let sphere_top = base.colliders[0].sphere().unwrap().center[1] + base.colliders[0].sphere().unwrap().radius;
     assert!(
         (top0 - sphere_top).abs() < TOP_TOLERANCE_M,
         "the cloth's top {top0} m rests on the sphere's top {sphere_top} m"
     );
     let mut lowered = base.clone();
-    lowered.spheres[0].center[1] -= 0.2;
+    lowered.colliders[0].shape.translate([0.0, -0.2, 0.0]);
     lowered.cloth.center[1] -= 0.2;
     let mut smaller = base.clone();
-    smaller.spheres[0].radius = 0.35;
-    smaller.spheres[0].center[1] += 0.15; // same top, so the fall is the same
+    let mut sphere = smaller.colliders[0].sphere().unwrap();
+    sphere.radius = 0.35;
+    sphere.center[1] += 0.15; // same top, so the fall is the same
+    smaller.colliders[0] = sphere.into();
     let (top_lowered, _) = rest(&lowered).unwrap();
     let (top_smaller, centroid_smaller) = rest(&smaller).unwrap();
     assert!(
@@ -680,7 +685,7 @@ fn force_on_vertex(backend: &Backend, kind: Effect, vertex: usize, displacement:
             mass: cloth_core::scene::Mass::PerVertex(0.01),
             ..Default::default()
         },
-        spheres: vec![],
+        colliders: vec![],
         effects: [kind].into_iter().collect(),
         time: TimeSpec { frame_dt: 1e-4, substeps: Substeps::Fixed(1), frames: 1 },
         ..Default::default()

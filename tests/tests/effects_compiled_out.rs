@@ -8,6 +8,7 @@
 
 use std::collections::BTreeSet;
 
+use cloth_core::colliders::ColliderKind;
 use cloth_core::{Effect, EffectSet, Integrator, Scene};
 use naga::{Expression, Handle, Literal, Module, Statement};
 
@@ -19,13 +20,13 @@ fn work_of(effect: Effect) -> &'static [&'static str] {
             &["add_spring_force", "project_spring"]
         }
         Effect::SpringDamping => &[],
-        Effect::SphereContact => {
-            &["contact_force", "sphere_center", "project_sphere", "project_sphere_swept", "project_spheres"]
+        Effect::Contact => {
+            &["contact_force", "collider_surface", "collider_center", "project_swept", "project_colliders"]
         }
         Effect::Friction => &["friction_force", "friction_holds", "contact_friction"],
         Effect::AirDrag => &["air_drag_force"],
         Effect::Wind => &["wind_force", "wind_velocity", "grid_normal"],
-        Effect::MovingPins | Effect::MovingSpheres => &["motion_displacement", "motion_velocity"],
+        Effect::MovingPins | Effect::MovingColliders => &["motion_displacement", "motion_velocity"],
     }
 }
 
@@ -145,17 +146,19 @@ enum Language {
 /// (which has no include directive); the workgroup size is a plain literal there.
 fn glsl_source(kernel: &str) -> String {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders/glsl");
-    let read = |name: &str| std::fs::read_to_string(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
-    let mut out = String::new();
-    for line in read(kernel).lines() {
-        if let Some(name) = line.trim().strip_prefix("#include ") {
-            out += &read(name.trim_matches('"'));
-            out.push('\n');
-        } else if !line.contains("GL_GOOGLE_include_directive") {
-            out += line;
-            out.push('\n');
+    fn inline(dir: &std::path::Path, name: &str, out: &mut String) {
+        let text = std::fs::read_to_string(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        for line in text.lines() {
+            if let Some(included) = line.trim().strip_prefix("#include ") {
+                inline(dir, included.trim_matches('"'), out);
+            } else if !line.contains("GL_GOOGLE_include_directive") {
+                *out += line;
+                out.push('\n');
+            }
         }
     }
+    let mut out = String::new();
+    inline(&dir, kernel, &mut out);
     // naga's GLSL front end has no atomics: a no-op function of the same shape stands in (it
     // changes no branch, so not what is reachable).
     let stub = "void naga_atomic_max(uint a, uint b) {}\n";
@@ -172,13 +175,13 @@ fn glsl_source(kernel: &str) -> String {
     }
 }
 
-/// The functions the pipeline of `source`'s `entry` can run with the scene's effects and the
-/// stage constant `stage` set, as the backend of `language` builds it.
+/// The functions the pipeline of `source`'s `entry` can run with the scene's effects, its collider
+/// kinds and the stage constant `stage` set, as the backend of `language` builds it.
 fn pipeline_work(
     language: Language,
     source: &str,
     entry: &str,
-    effects: EffectSet,
+    (effects, kinds): (EffectSet, &[ColliderKind]),
     stage: Option<(&str, u32)>,
 ) -> BTreeSet<String> {
     let module = match language {
@@ -199,6 +202,13 @@ fn pipeline_work(
             Language::Glsl => id.to_string(),
         };
         constants.insert(key, if on { 1.0 } else { 0.0 });
+    }
+    for kind in ColliderKind::ALL {
+        let key = match language {
+            Language::Wgsl => kind.shader_constant_name().to_string(),
+            Language::Glsl => (cloth_gpu::plan::COLLIDER_CONSTANT_IDS + kind.code()).to_string(),
+        };
+        constants.insert(key, if kinds.contains(&kind) { 1.0 } else { 0.0 });
     }
     match (language, stage) {
         (Language::Wgsl, stage) => {
@@ -225,8 +235,14 @@ fn pipeline_work(
     found
 }
 
-/// Every pipeline a scene of `integrator` and `effects` builds in `language`, with what it can run.
-fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> Vec<(String, BTreeSet<String>)> {
+/// Every pipeline a scene of `integrator`, `effects` and collider kinds builds in `language`, with
+/// what it can run.
+fn pipelines_with(
+    language: Language,
+    integrator: Integrator,
+    effects: EffectSet,
+    kinds: &[ColliderKind],
+) -> Vec<(String, BTreeSet<String>)> {
     let (stage, stages): (&str, Vec<u32>) = match integrator {
         Integrator::SemiImplicitEuler => ("STAGE", vec![0]),
         Integrator::VelocityVerlet => ("STAGE", vec![1, 2]),
@@ -243,7 +259,7 @@ fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> 
         .into_iter()
         .map(|n| {
             let name = format!("{language:?} {integrator:?} {stage} {n}");
-            (name, pipeline_work(language, &source, entry, effects, Some((stage, n))))
+            (name, pipeline_work(language, &source, entry, (effects, kinds), Some((stage, n))))
         })
         .collect();
     if integrator == Integrator::SemiImplicitEuler {
@@ -252,9 +268,45 @@ fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> 
             Language::Wgsl => (cloth_wgpu::tiled_shader_source(&cloth_gpu::geometry::DEFAULT_TILES[0]), "substeps"),
             Language::Glsl => (glsl_source("cloth_step_tiled.comp"), "main"),
         };
-        all.push((format!("{language:?} tiled Euler"), pipeline_work(language, &source, entry, effects, None)));
+        let work = pipeline_work(language, &source, entry, (effects, kinds), None);
+        all.push((format!("{language:?} tiled Euler"), work));
     }
     all
+}
+
+/// [`pipelines_with`] every collider kind.
+fn pipelines(language: Language, integrator: Integrator, effects: EffectSet) -> Vec<(String, BTreeSet<String>)> {
+    pipelines_with(language, integrator, effects, &ColliderKind::ALL)
+}
+
+/// The function that evaluates a collider kind's signed distance.
+fn surface_of(kind: ColliderKind) -> String {
+    format!("{}_surface", kind.name())
+}
+
+/// A collider kind no collider of the scene has costs nothing either: its signed distance cannot
+/// run in any pipeline, while the kinds present can.
+#[test]
+fn absent_collider_kinds_leave_no_reachable_work() {
+    let effects = Scene::default().effects;
+    for (language, integrator) in
+        [Language::Wgsl, Language::Glsl].into_iter().flat_map(|l| Integrator::ALL.map(|i| (l, i)))
+    {
+        for absent in ColliderKind::ALL {
+            let present: Vec<ColliderKind> = ColliderKind::ALL.into_iter().filter(|k| *k != absent).collect();
+            for (pipeline, work) in pipelines_with(language, integrator, effects, &present) {
+                let f = surface_of(absent);
+                assert!(!work.contains(&f), "{pipeline}: no {absent:?} collider, but `{f}` can run: {work:?}");
+            }
+        }
+        let (pipeline, work) = pipelines_with(language, integrator, effects, &ColliderKind::ALL).remove(0);
+        if integrator != Integrator::Xpbd {
+            for kind in ColliderKind::ALL {
+                let f = surface_of(kind);
+                assert!(work.contains(&f), "{pipeline}: every kind present, `{f}` should be reachable: {work:?}");
+            }
+        }
+    }
 }
 
 #[test]
@@ -265,7 +317,7 @@ fn absent_effects_leave_no_reachable_work_in_the_pipelines() {
         ("springs only", [Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings].into_iter().collect()),
         ("gravity only", EffectSet::empty().with(Effect::Gravity)),
         ("everything but the wind", every.without(Effect::Wind)),
-        ("everything but moving things", every.without(Effect::MovingPins).without(Effect::MovingSpheres)),
+        ("everything but moving things", every.without(Effect::MovingPins).without(Effect::MovingColliders)),
     ];
     for (language, integrator) in
         [Language::Wgsl, Language::Glsl].into_iter().flat_map(|l| Integrator::ALL.map(|i| (l, i)))

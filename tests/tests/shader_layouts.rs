@@ -10,8 +10,11 @@ use cloth_gpu::plan::{Constant, Plan, Shader};
 use cloth_gpu::{DeviceLimits, GpuTuning, Tiling};
 
 /// The view's shader, as the inspector builds it.
-const RENDER_SHADER: &str =
-    concat!(include_str!("../../shaders/wgsl/layout.wgsl"), include_str!("../../shaders/wgsl/render.wgsl"));
+const RENDER_SHADER: &str = concat!(
+    include_str!("../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../shaders/wgsl/colliders.wgsl"),
+    include_str!("../../shaders/wgsl/render.wgsl")
+);
 
 /// Every WGSL module, by file name.
 fn wgsl_modules() -> Vec<(&'static str, String)> {
@@ -138,7 +141,7 @@ fn every_spirv_module_lays_the_shared_structs_out_as_the_host() {
             let members: Vec<(&str, usize)> = members.iter().map(|(n, o)| (n.as_str(), *o as usize)).collect();
             assert_eq!(members, layout.fields, "{file}: {name}: SPIR-V members (left) against the Rust type's (right)");
         }
-        assert!(found >= 2, "{file}: the parameters and the spheres at least");
+        assert!(found >= 2, "{file}: the parameters and the colliders at least");
     }
 }
 

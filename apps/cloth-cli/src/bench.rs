@@ -425,7 +425,7 @@ fn effects(args: &BenchArgs, plan: &Plan) -> Result<()> {
                 args.frames,
                 args.repeats,
                 r.label(),
-                r.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
+                r.step.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
                 r.ms_per_frame.spread()
             );
         }

@@ -1,10 +1,12 @@
 //! A small software renderer for `--png`: the cloth as shaded two-sided triangles and the
-//! spheres, seen by a perspective camera, written as a PNG. Good enough to see a drape at a
+//! colliders (sphere-traced from their signed distances), seen by a perspective camera, written as a PNG. Good enough to see a drape at a
 //! glance without a GPU or a window.
 
 use std::path::Path;
 
 use anyhow::Context;
+use cloth_core::colliders::{Collider, ColliderKind};
+use cloth_core::real::Vec3;
 use cloth_core::{ClothModel, ClothState};
 
 type V3 = [f64; 3];
@@ -68,6 +70,9 @@ impl Camera {
 
 const LIGHT: V3 = [0.35, 0.85, 0.4];
 
+/// Most sphere-tracing steps along one pixel's ray.
+const RAY_STEPS: usize = 128;
+
 fn shade(base: [f64; 3], lambert: f64) -> [f64; 3] {
     let l = 0.25 + 0.75 * lambert.clamp(0.0, 1.0);
     [base[0] * l, base[1] * l, base[2] * l]
@@ -101,7 +106,7 @@ pub fn encode_png(pixels: &[u8], width: u32, height: u32) -> anyhow::Result<Vec<
 pub fn render(model: &ClothModel, state: &ClothState, width: usize, height: usize) -> Vec<u8> {
     let scene = &model.scene;
     let positions: Vec<V3> = state.positions.iter().map(|p| p.map(f64::from)).collect();
-    // Frame the spheres and the cloth's initial rectangle, so pictures of one scene compare.
+    // Frame the colliders and the cloth's initial rectangle, so pictures of one scene compare.
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     let mut grow = |p: V3, r: f64| {
@@ -110,13 +115,17 @@ pub fn render(model: &ClothModel, state: &ClothState, width: usize, height: usiz
             hi[k] = hi[k].max(p[k] + r);
         }
     };
-    for s in &scene.spheres {
-        grow(s.center, s.radius);
+    for c in &scene.colliders {
+        if let Some((low, high)) = c.shape.bounds() {
+            grow(low, 0.0);
+            grow(high, 0.0);
+        }
     }
     for p in &model.grid.positions {
         grow(*p, 0.0);
     }
-    let drop = if scene.spheres.is_empty() { 0.0 } else { 0.2 * (hi[1] - lo[1]) };
+    let solid = scene.colliders.iter().any(|c| c.shape.bounds().is_some());
+    let drop = if solid { 0.2 * (hi[1] - lo[1]) } else { 0.0 };
     let target = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0 - drop, (lo[2] + hi[2]) / 2.0];
     let extent = dot(sub(hi, lo), sub(hi, lo)).sqrt().max(0.5);
     let cam = Camera::looking_at(target, 1.35 * extent, width, height);
@@ -130,28 +139,54 @@ pub fn render(model: &ClothModel, state: &ClothState, width: usize, height: usiz
         }
     }
     let light = norm(LIGHT);
-    for (index, s) in scene.spheres.iter().enumerate() {
-        // A moving sphere is drawn where it is at the state's time.
-        let center = scene.sphere_center_at(index, state.time_s);
-        // Drawn slightly smaller: the cloth rests on its vertices, and flat triangles between
-        // them would otherwise be pierced by the curved surface.
-        let radius = 0.98 * s.radius;
-        for py in 0..height {
-            for px in 0..width {
-                let d = cam.ray(px as f64 + 0.5, py as f64 + 0.5);
-                let oc = sub(cam.eye, center);
-                let b = dot(oc, d);
-                let disc = b * b - (dot(oc, oc) - radius * radius);
-                if disc < 0.0 {
-                    continue;
+    // Every collider kind is drawn the same way: sphere tracing its signed distance, where each
+    // collider is at the state's time.
+    let moving = scene.effects.contains(cloth_core::Effect::MovingColliders);
+    let colliders: Vec<(Collider<f64>, Vec3<f64>)> = (scene.colliders.iter())
+        .map(|spec| {
+            let c = Collider::<f64>::of(spec);
+            let (center, _) = c.at(state.time_s, moving);
+            (c, center)
+        })
+        .collect();
+    // Drawn slightly inside: the cloth rests on its vertices, and flat triangles between them
+    // would otherwise be pierced by a curved surface.
+    let inset = |c: &Collider<f64>| 0.01 * c.thickness.min(1.0);
+    let far = 20.0 * extent;
+    for py in 0..height {
+        for px in 0..width {
+            let d = cam.ray(px as f64 + 0.5, py as f64 + 0.5);
+            let mut t = 0.0;
+            for _ in 0..RAY_STEPS {
+                let at = Vec3::new(cam.eye[0] + t * d[0], cam.eye[1] + t * d[1], cam.eye[2] + t * d[2]);
+                let (k, surface) = (colliders.iter().enumerate())
+                    .map(|(k, (c, center))| {
+                        let s = c.surface(*center, at);
+                        (k, cloth_core::colliders::Surface { distance: s.distance + inset(c), ..s })
+                    })
+                    .min_by(|a, b| a.1.distance.total_cmp(&b.1.distance))
+                    .map_or((0, None), |(k, s)| (k, Some(s)));
+                let Some(surface) = surface else { break };
+                if surface.distance < 1e-4 * extent {
+                    let i = py * width + px;
+                    let z = t * dot(d, cam.forward);
+                    if z < depth[i] {
+                        depth[i] = z;
+                        let n = surface.normal.to_f64();
+                        let base = if colliders[k].0.kind == ColliderKind::Plane {
+                            // A checkerboard of 0.5 m squares, so a ground reads as one.
+                            let parity = ((at.x * 2.0).floor() + (at.z * 2.0).floor()) as i64 & 1;
+                            if parity == 0 { [0.62, 0.64, 0.6] } else { [0.5, 0.52, 0.49] }
+                        } else {
+                            [0.55, 0.6, 0.68]
+                        };
+                        color[i] = shade(base, dot(n, light));
+                    }
+                    break;
                 }
-                let t = -b - disc.sqrt();
-                let i = py * width + px;
-                if t > 0.0 && t < depth[i] {
-                    let hit = [cam.eye[0] + t * d[0], cam.eye[1] + t * d[1], cam.eye[2] + t * d[2]];
-                    let n = norm(sub(hit, center));
-                    depth[i] = t * dot(d, cam.forward);
-                    color[i] = shade([0.55, 0.6, 0.68], dot(n, light));
+                t += surface.distance;
+                if t > far {
+                    break;
                 }
             }
         }

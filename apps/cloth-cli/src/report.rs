@@ -51,7 +51,12 @@ pub struct Report {
     pub stable_substep_s: f64,
     pub simulated_seconds: f64,
     pub max_penetration_m: f64,
+    /// Colliders the cloth meets (0 without `Contact`).
+    pub colliders: usize,
+    /// The deepest penetration as a fraction of the smallest sphere's radius (`None`: no sphere).
     pub max_penetration_fraction_of_radius: Option<f64>,
+    /// The deepest penetration as a fraction of the cloth's spacing (the smaller grid step).
+    pub max_penetration_fraction_of_spacing: f64,
     pub nan_count: usize,
     /// Edge–triangle crossings of the cloth through itself, at the end and at most in a frame.
     pub self_intersections: SelfIntersections,
@@ -75,7 +80,13 @@ impl Report {
         let Measured { state, diagnostics, counts, energy, frames, wall, self_intersections } = *run;
         let scene = &model.scene;
         let [structural, shear, bend] = model.spring_counts();
-        let min_radius = scene.spheres.iter().map(|s| s.radius).fold(f64::INFINITY, f64::min);
+        let min_radius = (scene.colliders.iter())
+            .filter_map(|c| match c.shape {
+                cloth_core::colliders::Shape::Sphere { radius, .. } => Some(radius),
+                _ => None,
+            })
+            .fold(f64::INFINITY, f64::min);
+        let [du, dv] = scene.cloth.spacing();
         Self {
             scene: scene.name.clone(),
             backend: sim.backend_name().to_string(),
@@ -89,9 +100,11 @@ impl Report {
             stable_substep_s: cloth_core::stability::stable_substep(scene),
             simulated_seconds: state.time_s,
             max_penetration_m: diagnostics.max_penetration_m,
+            colliders: cloth_core::SceneQuantities::of(scene).colliders.len(),
             max_penetration_fraction_of_radius: min_radius
                 .is_finite()
                 .then(|| diagnostics.max_penetration_m / min_radius),
+            max_penetration_fraction_of_spacing: diagnostics.max_penetration_m / du.min(dv),
             nan_count: state.non_finite_count(),
             self_intersections,
             final_kinetic_energy_j: energy.kinetic,
@@ -124,12 +137,19 @@ impl Report {
             self.simulated_seconds,
             self.stable_substep_s
         )?;
-        match self.max_penetration_fraction_of_radius {
-            Some(f) => {
-                out!("contact     max penetration {:.3e} m ({:.2}% of the radius)", self.max_penetration_m, 100.0 * f)
-            }
-            None => out!("contact     no sphere"),
-        }?;
+        if self.colliders == 0 {
+            out!("contact     no collider")?;
+        } else {
+            let radius = match self.max_penetration_fraction_of_radius {
+                Some(f) => format!(", {:.2}% of the smallest sphere's radius", 100.0 * f),
+                None => String::new(),
+            };
+            out!(
+                "contact     max penetration {:.3e} m ({:.2}% of the cloth's spacing{radius})",
+                self.max_penetration_m,
+                100.0 * self.max_penetration_fraction_of_spacing
+            )?;
+        }
         match (self.self_intersections.at_end, self.self_intersections.max) {
             (Some(n), Some(most)) => out!(
                 "self        {n} edge-triangle crossings of the cloth through itself at the end, at most {most} in a \

@@ -103,6 +103,8 @@ pub struct Runtime {
     /// How the GPU backends lay their work out, and the draft the tuning panel edits.
     tuning: GpuTuning,
     tuning_draft: GpuTuning,
+    /// The collider shift-drag moves (an index into the scene's colliders).
+    dragged_collider: usize,
 }
 
 /// The inspector.
@@ -192,6 +194,7 @@ impl InspectorApp {
                 effect_costs: Default::default(),
                 tuning: GpuTuning::default(),
                 tuning_draft: GpuTuning::default(),
+                dragged_collider: 0,
             },
             state,
         };
@@ -471,13 +474,12 @@ impl InspectorApp {
         let shift = ui.input(|i| i.modifiers.shift);
         if response.dragged_by(egui::PointerButton::Primary) {
             let d = response.drag_delta();
-            if shift && !self.state.scene.spheres.is_empty() {
+            let dragged = self.runtime.dragged_collider;
+            if shift && dragged < self.state.scene.colliders.len() {
                 let (right, up) = camera.right_up();
                 let scale = camera.distance as f64 * 0.0015;
-                let c = &mut self.state.scene.spheres[0].center;
-                for k in 0..3 {
-                    c[k] += (right[k] as f64 * d.x as f64 - up[k] as f64 * d.y as f64) * scale;
-                }
+                let step = [0, 1, 2].map(|k| (right[k] as f64 * d.x as f64 - up[k] as f64 * d.y as f64) * scale);
+                self.state.scene.colliders[dragged].shape.translate(step);
             } else {
                 camera.orbit(d.x, d.y);
             }
@@ -694,7 +696,8 @@ impl eframe::App for InspectorApp {
                 });
                 egui::CollapsingHeader::new("Cloth").show(ui, |ui| panels::cloth::show(ui, &mut ctx_panel));
                 egui::CollapsingHeader::new("Springs").show(ui, |ui| panels::springs::show(ui, &mut ctx_panel));
-                egui::CollapsingHeader::new("Contact").show(ui, |ui| panels::contact::show(ui, &mut ctx_panel));
+                egui::CollapsingHeader::new("Contact")
+                    .show(ui, |ui| panels::contact::show(ui, &mut ctx_panel, &mut self.runtime.dragged_collider));
                 egui::CollapsingHeader::new("Effects").show(ui, |ui| panels::effects::show(ui, &mut ctx_panel));
                 egui::CollapsingHeader::new("View").default_open(true).show(ui, |ui| {
                     ui.horizontal_wrapped(|ui| {

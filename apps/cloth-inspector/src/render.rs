@@ -4,15 +4,20 @@
 //! buffer (no read-back); other backends' states are uploaded once per frame.
 
 use bytemuck::{Pod, Zeroable};
+use cloth_core::colliders::{Collider, ColliderKind};
+use cloth_core::real::Vec3;
 use cloth_core::{ClothModel, ClothState, Scene};
-use cloth_gpu::layout::GpuSphere;
+use cloth_gpu::layout::GpuCollider;
 use eframe::egui_wgpu::RenderState;
 use eframe::wgpu;
 use wgpu::util::DeviceExt;
 
 /// The view's WGSL: the shared structs (`layout.wgsl`), then `render.wgsl`.
-pub const RENDER_SHADER: &str =
-    concat!(include_str!("../../../shaders/wgsl/layout.wgsl"), include_str!("../../../shaders/wgsl/render.wgsl"));
+pub const RENDER_SHADER: &str = concat!(
+    include_str!("../../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../../shaders/wgsl/colliders.wgsl"),
+    include_str!("../../../shaders/wgsl/render.wgsl")
+);
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// egui shows native textures of this format and takes their values as sRGB-encoded, so the
 /// shaders' colours are written as they are.
@@ -34,7 +39,7 @@ struct ClothInfo {
     ny: u32,
     color_mode: u32,
     strain_kind: u32,
-    sphere_count: u32,
+    collider_count: u32,
     pad0: u32,
     pad1: u32,
     pad2: u32,
@@ -45,7 +50,7 @@ struct ClothInfo {
 }
 
 impl ClothInfo {
-    /// The cloth's grid, spacing and spheres for `color_mode`.
+    /// The cloth's grid, spacing and colliders for `color_mode`.
     fn new(scene: &Scene, color_mode: ColorMode) -> Self {
         let [nx, ny] = scene.cloth.resolution;
         let [du, dv] = scene.cloth.spacing();
@@ -62,7 +67,7 @@ impl ClothInfo {
                 ColorMode::Strain(kind) => kind as u32,
                 _ => 0,
             },
-            sphere_count: scene.spheres.len() as u32,
+            collider_count: scene.colliders.len() as u32,
             pad0: 0,
             pad1: 0,
             pad2: 0,
@@ -74,12 +79,61 @@ impl ClothInfo {
     }
 }
 
-/// The spheres as the view's shaders read them: every sphere of the scene, where it is at time
-/// `t_s` (s).
-pub fn spheres_at(scene: &Scene, t_s: f64) -> Vec<GpuSphere> {
-    (scene.spheres.iter().enumerate())
-        .map(|(i, s)| GpuSphere { center: scene.sphere_center_at(i, t_s).map(|x| x as f32), ..GpuSphere::from_spec(s) })
+/// The colliders as the view's shaders read them: every collider of the scene, where it is at
+/// time `t_s` (s).
+pub fn colliders_at(scene: &Scene, t_s: f64) -> Vec<GpuCollider> {
+    (scene.colliders.iter().enumerate())
+        .map(|(i, c)| {
+            let g = GpuCollider::from_spec(c);
+            let d = scene.collider_offset_at(i, t_s);
+            GpuCollider { center: [0, 1, 2].map(|k| (f64::from(g.center[k]) + d[k]) as f32), ..g }
+        })
         .collect()
+}
+
+/// Half the side of the square a plane is drawn as, m.
+const PLANE_DRAWN_HALF_SIDE: f64 = 8.0;
+
+/// The colliders of `scene` at time `t_s` (s) as one triangle mesh in world space: a plane as a
+/// square around the cloth's start, every other kind as a sphere around it whose vertices are
+/// moved onto its surface along the gradient of its signed distance (`x ← x − φ(x) n(x)`, a few
+/// times: exact for these convex shapes), drawn slightly inside (the cloth rests on its vertices,
+/// and flat triangles between them would otherwise be pierced by a curved surface).
+fn collider_mesh(scene: &Scene, t_s: f64) -> (Vec<MeshVertex>, Vec<u32>) {
+    let (sphere_vertices, sphere_indices) = uv_sphere(48, 24);
+    let moving = scene.effects.contains(cloth_core::Effect::MovingColliders);
+    let (mut vertices, mut indices) = (Vec::new(), Vec::new());
+    let cloth_center = Vec3::from_f64(scene.cloth.center);
+    for spec in &scene.colliders {
+        let c = Collider::<f64>::of(spec);
+        let (center, _) = c.at(t_s, moving);
+        let first = vertices.len() as u32;
+        let to_f32 = |v: Vec3<f64>| v.to_f64().map(|x| x as f32);
+        if c.kind == ColliderKind::Plane {
+            // The square's centre: the cloth's start, dropped onto the plane.
+            let n = c.axes[1];
+            let middle = cloth_center - n * c.surface(center, cloth_center).distance;
+            let (u, w) = (c.axes[0] * PLANE_DRAWN_HALF_SIDE, c.axes[2] * PLANE_DRAWN_HALF_SIDE);
+            for corner in [middle - u - w, middle + u - w, middle + u + w, middle - u + w] {
+                vertices.push(MeshVertex { position: to_f32(corner - n * 0.002), normal: to_f32(n) });
+            }
+            indices.extend([0, 2, 1, 0, 3, 2].map(|k| first + k));
+            continue;
+        }
+        let Some((low, high)) = spec.shape.bounds() else { continue };
+        let reach = 0.5 * (0..3).map(|k| (high[k] - low[k]).powi(2)).sum::<f64>().sqrt();
+        let inset = 0.015 * c.thickness;
+        for v in &sphere_vertices {
+            let mut x = center + Vec3::from_f64(v.position.map(f64::from)) * reach;
+            for _ in 0..8 {
+                let s = c.surface(center, x);
+                x -= s.normal * (s.distance + inset);
+            }
+            vertices.push(MeshVertex { position: to_f32(x), normal: to_f32(c.surface(center, x).normal) });
+        }
+        indices.extend(sphere_indices.iter().map(|i| first + i));
+    }
+    (vertices, indices)
 }
 
 #[repr(C)]
@@ -110,7 +164,7 @@ pub enum ColorMode {
     Plain,
     /// Stretch `|L/L0 − 1|` of the springs of one kind (blue 0, red 5%).
     Strain(cloth_core::SpringKind),
-    /// Free, sticking or sliding on a sphere.
+    /// Free, sticking or sliding on a collider.
     Contact,
     /// Speed.
     Speed,
@@ -131,7 +185,7 @@ pub struct ViewInputs<'a> {
     pub color_mode: ColorMode,
     pub wireframe: bool,
     pub source: Source<'a>,
-    /// Simulated time of the drawn state, s: where moving spheres and pins are drawn.
+    /// Simulated time of the drawn state, s: where moving colliders and pins are drawn.
     pub time_s: f64,
     /// Cloth triangles a cloth edge passes through, drawn red over the cloth.
     pub crossed_triangles: &'a [[u32; 3]],
@@ -167,8 +221,8 @@ pub struct ViewRenderer {
     lines: wgpu::RenderPipeline,
     camera: wgpu::Buffer,
     cloth_info: wgpu::Buffer,
-    /// The spheres, grown to hold every sphere of the scene.
-    spheres: wgpu::Buffer,
+    /// The colliders, grown to hold every collider of the scene.
+    colliders: wgpu::Buffer,
     sphere_mesh: (wgpu::Buffer, wgpu::Buffer, u32),
     ground: (wgpu::Buffer, u32),
     mesh: Option<Mesh>,
@@ -386,9 +440,9 @@ impl ViewRenderer {
             lines,
             camera: buffer("view camera", size_of::<CameraUniform>() as u64, copy_uniform),
             cloth_info: buffer("view cloth info", size_of::<ClothInfo>() as u64, copy_uniform),
-            spheres: buffer(
-                "view spheres",
-                size_of::<GpuSphere>() as u64,
+            colliders: buffer(
+                "view colliders",
+                size_of::<GpuCollider>() as u64,
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             ),
             sphere_mesh,
@@ -511,33 +565,32 @@ impl ViewRenderer {
         queue.write_buffer(&self.camera, 0, bytemuck::bytes_of(&camera));
         let info = ClothInfo::new(scene, inputs.color_mode);
         queue.write_buffer(&self.cloth_info, 0, bytemuck::bytes_of(&info));
-        // Moving spheres and pins are drawn where they are at the state's time.
-        let centers: Vec<[f64; 3]> =
-            (0..scene.spheres.len()).map(|i| scene.sphere_center_at(i, inputs.time_s)).collect();
-        let spheres = spheres_at(scene, inputs.time_s);
-        let bytes = std::mem::size_of_val(spheres.as_slice()) as u64;
-        if bytes > self.spheres.size() {
-            self.spheres = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("view spheres"),
+        // Moving colliders and pins are drawn where they are at the state's time.
+        let colliders = colliders_at(scene, inputs.time_s);
+        let bytes = std::mem::size_of_val(colliders.as_slice()) as u64;
+        if bytes > self.colliders.size() {
+            self.colliders = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("view colliders"),
                 size: bytes,
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
         }
-        if !spheres.is_empty() {
-            queue.write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
+        if !colliders.is_empty() {
+            queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&colliders));
         }
-        let mut instances: Vec<InstanceData> = scene
-            .spheres
-            .iter()
-            .zip(&centers)
-            .map(|(s, c)| InstanceData {
-                // Slightly smaller than the collider: the cloth rests on its vertices, and the flat
-                // triangles between them would otherwise be pierced by the curved surface.
-                center_radius: [c[0] as f32, c[1] as f32, c[2] as f32, 0.985 * s.radius as f32],
-                color: [0.55, 0.6, 0.68, 1.0],
-            })
-            .collect();
+        let (collider_vertices, collider_indices) = collider_mesh(scene, inputs.time_s);
+        let collider_buffers = (!collider_indices.is_empty()).then(|| {
+            let init = |label: &str, contents: &[u8], usage| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+            };
+            (
+                init("view collider vertices", bytemuck::cast_slice(&collider_vertices), wgpu::BufferUsages::VERTEX),
+                init("view collider indices", bytemuck::cast_slice(&collider_indices), wgpu::BufferUsages::INDEX),
+            )
+        });
+        // The colliders' mesh is in world space: one instance at the origin, of scale 1.
+        let mut instances = vec![InstanceData { center_radius: [0.0, 0.0, 0.0, 1.0], color: [0.55, 0.6, 0.68, 1.0] }];
         let marker = 0.25 * (info.rest_du.min(info.rest_dv)).max(0.004);
         let d = scene.pin_displacement_at(inputs.time_s);
         for (i, _) in model.grid.pinned.iter().enumerate().filter(|(_, p)| **p) {
@@ -548,12 +601,10 @@ impl ViewRenderer {
                 color: [0.9, 0.1, 0.1, 1.0],
             });
         }
-        let instance_buffer = (!instances.is_empty()).then(|| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("view instances"),
-                contents: bytemuck::cast_slice(&instances),
-                usage: wgpu::BufferUsages::VERTEX,
-            })
+        let instance_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("view instances"),
+            contents: bytemuck::cast_slice(&instances),
+            usage: wgpu::BufferUsages::VERTEX,
         });
         self.mesh_for(device, model);
         let mesh = self.mesh.as_ref().expect("built");
@@ -575,7 +626,7 @@ impl ViewRenderer {
                 wgpu::BindGroupEntry { binding: 1, resource: self.cloth_info.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: positions.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 3, resource: velocities.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: self.spheres.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: self.colliders.as_entire_binding() },
             ],
         });
         let crossed = (!inputs.crossed_triangles.is_empty()).then(|| {
@@ -615,12 +666,17 @@ impl ViewRenderer {
             pass.set_pipeline(&self.lines);
             pass.set_vertex_buffer(0, self.ground.0.slice(..));
             pass.draw(0..self.ground.1, 0..1);
-            if let Some(instance_buffer) = &instance_buffer {
-                pass.set_pipeline(&self.instances);
+            pass.set_pipeline(&self.instances);
+            pass.set_vertex_buffer(1, instance_buffer.slice(..));
+            if let Some((vertices, indices)) = &collider_buffers {
+                pass.set_vertex_buffer(0, vertices.slice(..));
+                pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..collider_indices.len() as u32, 0, 0..1);
+            }
+            if instances.len() > 1 {
                 pass.set_vertex_buffer(0, self.sphere_mesh.0.slice(..));
-                pass.set_vertex_buffer(1, instance_buffer.slice(..));
                 pass.set_index_buffer(self.sphere_mesh.1.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..self.sphere_mesh.2, 0, 0..instances.len() as u32);
+                pass.draw_indexed(0..self.sphere_mesh.2, 0, 1..instances.len() as u32);
             }
             pass.set_pipeline(&self.cloth);
             pass.set_index_buffer(triangles.slice(..), wgpu::IndexFormat::Uint32);
@@ -646,32 +702,32 @@ mod tests {
     use super::*;
     use cloth_core::{CpuSimulator, Simulator};
 
-    /// How a vertex touches the spheres, as the contact colouring shows it.
+    /// How a vertex touches the colliders, as the contact colouring shows it.
     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
     enum ContactState {
-        /// On no sphere.
+        /// On no collider.
         Free,
-        /// On a sphere (within 0.2% of its radius), moving along it at under 1 mm/s.
+        /// On a collider (within 0.2% of its size), moving along it at under 1 mm/s.
         Sticking,
-        /// On a sphere, moving along it faster.
+        /// On a collider, moving along it faster.
         Sliding,
     }
 
     /// The contact state of every vertex of `state`, in `f32` with `render.wgsl`'s operations (the
-    /// last sphere a vertex touches decides, as there).
-    fn contact_states(spheres: &[GpuSphere], state: &ClothState) -> Vec<ContactState> {
-        let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    /// last collider a vertex touches decides, as there).
+    fn contact_states(scene: &Scene, state: &ClothState) -> Vec<ContactState> {
+        let moving = scene.effects.contains(cloth_core::Effect::MovingColliders);
         (state.positions.iter().zip(&state.velocities))
             .map(|(x, v)| {
                 let mut contact = ContactState::Free;
-                for s in spheres {
-                    let offset = [x[0] - s.center[0], x[1] - s.center[1], x[2] - s.center[2]];
-                    let d = dot(offset, offset).sqrt();
-                    if d < s.radius * 1.002 {
-                        let n = offset.map(|c| c / d.max(1e-9));
-                        let vn = dot(*v, n);
-                        let v_t = [v[0] - n[0] * vn, v[1] - n[1] * vn, v[2] - n[2] * vn];
-                        let sticking = dot(v_t, v_t).sqrt() < 1e-3;
+                for spec in &scene.colliders {
+                    let c = Collider::<f32>::of(spec);
+                    let (center, _) = c.at(state.time_s as f32, moving);
+                    let s = c.surface(center, Vec3::from_f32(*x));
+                    if s.distance < c.tolerance * 2000.0 {
+                        let v = Vec3::from_f32(*v);
+                        let v_t = v - s.normal * v.dot(s.normal);
+                        let sticking = v_t.length() < 1e-3;
                         contact = if sticking { ContactState::Sticking } else { ContactState::Sliding };
                     }
                 }
@@ -698,17 +754,17 @@ mod tests {
     fn the_view_shader_reads_the_structs_the_host_writes() {
         let (fields, size) = wgsl_struct("ClothInfo");
         assert_eq!(size, size_of::<ClothInfo>(), "ClothInfo");
-        let names = ["nx", "ny", "color_mode", "strain_kind", "sphere_count", "pad0", "pad1", "pad2"];
+        let names = ["nx", "ny", "color_mode", "strain_kind", "collider_count", "pad0", "pad1", "pad2"];
         let names = names.iter().chain(&["rest_du", "rest_dv", "speed_scale", "strain_scale"]);
         let expected: Vec<(String, usize)> = names.enumerate().map(|(k, n)| (n.to_string(), 4 * k)).collect();
         assert_eq!(fields, expected, "ClothInfo: WGSL (left) against the Rust type's order of u32/f32 fields");
         let (_, size) = wgsl_struct("Camera");
         assert_eq!(size, size_of::<CameraUniform>(), "Camera");
-        let sphere = GpuSphere::layout();
-        let (fields, size) = wgsl_struct(sphere.shader_name);
-        assert_eq!(size, sphere.size, "Sphere");
+        let collider = GpuCollider::layout();
+        let (fields, size) = wgsl_struct(collider.shader_name);
+        assert_eq!(size, collider.size, "Collider");
         let fields: Vec<(&str, usize)> = fields.iter().map(|(n, o)| (n.as_str(), *o)).collect();
-        assert_eq!(fields, sphere.fields, "Sphere: WGSL (left) against cloth_gpu::layout::GpuSphere (right)");
+        assert_eq!(fields, collider.fields, "Collider: WGSL (left) against cloth_gpu::layout::GpuCollider (right)");
     }
 
     /// The contact colouring on the GPU (`render.wgsl`'s `vertex_color`, which `vs_cloth` draws)
@@ -721,18 +777,19 @@ mod tests {
         let mut sim = CpuSimulator::new(&scene).unwrap();
         sim.advance(scene.time.frames).unwrap();
         let state = sim.read_state().unwrap();
-        let spheres = spheres_at(&scene, state.time_s);
-        let cpu = contact_states(&spheres, &state);
-        for (k, sphere) in spheres.iter().enumerate() {
-            let on = contact_states(std::slice::from_ref(sphere), &state);
-            assert!(on.iter().any(|c| *c != ContactState::Free), "sphere {k}: the test needs cloth resting on it");
+        let colliders = colliders_at(&scene, state.time_s);
+        let cpu = contact_states(&scene, &state);
+        for k in 0..scene.colliders.len() {
+            let alone = Scene { colliders: vec![scene.colliders[k].clone()], ..scene.clone() };
+            let on = contact_states(&alone, &state);
+            assert!(on.iter().any(|c| *c != ContactState::Free), "collider {k}: the test needs cloth resting on it");
         }
         let context = match cloth_wgpu::GpuContext::new(None) {
             Ok(c) => c,
             Err(e) if std::env::var_os("CI").is_none() => return eprintln!("SKIPPED: {e}"),
             Err(e) => panic!("no wgpu adapter and CI is set: {e}"),
         };
-        let gpu = gpu_vertex_colors(&context, &scene, &state, &spheres);
+        let gpu = gpu_vertex_colors(&context, &scene, &state, &colliders);
         let palette = [(ContactState::Free, [0.55, 0.6, 0.75]), (ContactState::Sticking, [0.2, 0.8, 0.3])];
         let palette = [palette[0], palette[1], (ContactState::Sliding, [0.95, 0.25, 0.15])];
         let mismatches: Vec<(usize, ContactState, [f32; 4])> = (gpu.iter().zip(&cpu).enumerate())
@@ -750,7 +807,7 @@ mod tests {
         context: &cloth_wgpu::GpuContext,
         scene: &Scene,
         state: &ClothState,
-        spheres: &[GpuSphere],
+        colliders: &[GpuCollider],
     ) -> Vec<[f32; 4]> {
         let device = &context.device;
         let init = |label: &str, contents: &[u8], usage| {
@@ -789,7 +846,7 @@ mod tests {
             (1, init("info", bytemuck::bytes_of(&info), wgpu::BufferUsages::UNIFORM)),
             (2, init("positions", bytemuck::cast_slice(&p), storage)),
             (3, init("velocities", bytemuck::cast_slice(&v), storage)),
-            (4, init("spheres", bytemuck::cast_slice(spheres), storage)),
+            (4, init("colliders", bytemuck::cast_slice(colliders), storage)),
         ];
         let mut entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()

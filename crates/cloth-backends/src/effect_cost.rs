@@ -1,6 +1,8 @@
 //! What each effect costs: one scene timed with no effect at all (the bare cloth: integration of
 //! free point masses, pins held), then with the scene's effects added one at a time in the order
-//! of [`Effect::ALL`], on one backend. `cloth bench --effects` prints it; the inspector's stats
+//! of [`Effect::ALL`], on one backend. Contact comes in one row per collider kind of the scene:
+//! `Contact` with the scene's colliders of its first kind, then each other kind's colliders
+//! added, in the order of [`ColliderKind::ALL`]. `cloth bench --effects` prints it; the inspector's stats
 //! panel shows it for the scene on screen.
 //!
 //! Every row runs the same number of substeps per frame (the scene's own, `Auto` resolved for
@@ -14,18 +16,53 @@
 
 use std::time::Instant;
 
+use cloth_core::colliders::ColliderKind;
 use cloth_core::{Effect, EffectSet, Scene, SimError, Substeps, stability};
 
 use crate::Backend;
 use crate::timing::{Difference, Samples};
 
+/// What one row adds to the one before.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Added {
+    /// An effect (for `Contact`: with the colliders of the scene's first kind).
+    Effect(Effect),
+    /// The scene's colliders of one more kind.
+    Colliders(ColliderKind),
+}
+
+/// One row of the breakdown as [`steps`] lists it: what it adds, its effects and the collider
+/// kinds it keeps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Step {
+    /// What this row adds (`None`: the bare cloth).
+    pub added: Option<Added>,
+    /// The effects this row simulates.
+    pub effects: EffectSet,
+    /// The collider kinds whose colliders this row keeps.
+    pub kinds: Vec<ColliderKind>,
+}
+
+impl Step {
+    /// `bare cloth`, `+ Wind`, `+ Contact (sphere)` or `+ box colliders`.
+    pub fn label(&self) -> String {
+        match self.added {
+            None => "bare cloth".to_string(),
+            Some(Added::Effect(Effect::Contact)) => match self.kinds.first() {
+                Some(kind) => format!("+ Contact ({})", kind.name()),
+                None => "+ Contact".to_string(),
+            },
+            Some(Added::Effect(e)) => format!("+ {e:?}"),
+            Some(Added::Colliders(kind)) => format!("+ {} colliders", kind.name()),
+        }
+    }
+}
+
 /// One row of the breakdown.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EffectCost {
-    /// The effect this row adds to the previous one (`None`: the bare cloth).
-    pub added: Option<Effect>,
-    /// The effects this row simulates.
-    pub effects: EffectSet,
+    /// What this row adds, its effects and its collider kinds.
+    pub step: Step,
     /// Cost of one frame, ms, once per repeat: GPU execution time where the backend has
     /// timestamps, else wall clock to the end of the work.
     pub ms_per_frame: Samples,
@@ -37,12 +74,9 @@ pub struct EffectCost {
 }
 
 impl EffectCost {
-    /// `bare cloth` or `+ Wind`.
+    /// `bare cloth`, `+ Wind`, `+ Contact (sphere)` or `+ box colliders`.
     pub fn label(&self) -> String {
-        match self.added {
-            None => "bare cloth".to_string(),
-            Some(e) => format!("+ {e:?}"),
-        }
+        self.step.label()
     }
 
     /// The added cost in words (`+1.234 ms`, `inside the noise (...)`, `saves ...`), or `—` for
@@ -83,13 +117,30 @@ impl Breakdown {
 /// one difference and a single disturbed timing decides the verdict.
 pub const MIN_REPEATS: u32 = 3;
 
-/// The rows `measure` runs for `scene`: none, then each of its effects added in turn.
-pub fn steps(scene: &Scene) -> Vec<(Option<Effect>, EffectSet)> {
+/// The collider kinds of `scene`'s colliders, in [`ColliderKind::ALL`] order.
+fn kinds_of(scene: &Scene) -> Vec<ColliderKind> {
+    ColliderKind::ALL.into_iter().filter(|k| scene.colliders.iter().any(|c| c.kind() == *k)).collect()
+}
+
+/// The rows `measure` runs for `scene`: none, then each of its effects added in turn, `Contact`
+/// with the colliders of its first collider kind and then one row per further kind.
+pub fn steps(scene: &Scene) -> Vec<Step> {
+    let all_kinds = kinds_of(scene);
     let mut effects = EffectSet::empty();
-    let mut rows = vec![(None, effects)];
+    let mut rows = vec![Step { added: None, effects, kinds: Vec::new() }];
+    let mut kinds: Vec<ColliderKind> = Vec::new();
     for effect in Effect::ALL.into_iter().filter(|e| scene.effects.contains(*e)) {
         effects = effects.with(effect);
-        rows.push((Some(effect), effects));
+        if effect == Effect::Contact {
+            kinds.extend(all_kinds.first());
+        }
+        rows.push(Step { added: Some(Added::Effect(effect)), effects, kinds: kinds.clone() });
+        if effect == Effect::Contact {
+            for kind in all_kinds.iter().skip(1) {
+                kinds.push(*kind);
+                rows.push(Step { added: Some(Added::Colliders(*kind)), effects, kinds: kinds.clone() });
+            }
+        }
     }
     rows
 }
@@ -102,10 +153,15 @@ pub fn substeps(scene: &Scene) -> u32 {
     }
 }
 
-/// The scene of one row: `scene` with `effects` and the substeps of the whole scene fixed.
-pub fn row_scene(scene: &Scene, effects: EffectSet) -> Scene {
+/// The scene of one row: `scene` with the step's effects, with `Contact` only its colliders of
+/// the step's kinds (without it they are not met, and all kept), and the substeps of the whole
+/// scene fixed.
+pub fn row_scene(scene: &Scene, step: &Step) -> Scene {
     let mut row = scene.clone();
-    row.effects = effects;
+    row.effects = step.effects;
+    if step.effects.contains(Effect::Contact) {
+        row.colliders.retain(|c| step.kinds.contains(&c.kind()));
+    }
     row.time.substeps = Substeps::Fixed(substeps(scene));
     row
 }
@@ -144,8 +200,8 @@ pub fn measure(
     let steps = steps(scene);
     let mut adapter_name = String::new();
     let mut sims = Vec::with_capacity(steps.len());
-    for (_, effects) in &steps {
-        let mut sim = (backend.create)(&row_scene(scene, *effects), tuning)?;
+    for step in &steps {
+        let mut sim = (backend.create)(&row_scene(scene, step), tuning)?;
         adapter_name = sim.adapter_name();
         // Warm-up: pipeline compilation and first-use allocations, then wait for it.
         sim.advance(1)?;
@@ -176,10 +232,10 @@ pub fn measure(
         }
     }
     let mut rows: Vec<EffectCost> = Vec::with_capacity(steps.len());
-    for (((added, effects), (_, gpu_timed)), times) in steps.iter().zip(&sims).zip(timings) {
+    for ((step, (_, gpu_timed)), times) in steps.into_iter().zip(&sims).zip(timings) {
         let ms_per_frame = Samples::new(times);
         let added_cost = rows.last().map(|previous| Difference::of(&ms_per_frame.paired_minus(&previous.ms_per_frame)));
-        rows.push(EffectCost { added: *added, effects: *effects, ms_per_frame, gpu_timed: *gpu_timed, added_cost });
+        rows.push(EffectCost { step, ms_per_frame, gpu_timed: *gpu_timed, added_cost });
     }
     Ok(Breakdown { adapter: adapter_name, substeps: substeps(scene), frames, repeats, rows })
 }
@@ -192,13 +248,30 @@ mod tests {
     fn rows_add_the_scenes_effects_one_at_a_time_and_keep_its_substeps() {
         let scene = Scene::default();
         let steps = steps(&scene);
-        assert_eq!(steps[0], (None, EffectSet::empty()));
+        assert_eq!(steps[0], Step { added: None, effects: EffectSet::empty(), kinds: vec![] });
         assert_eq!(steps.len(), 1 + scene.effects.iter().count());
-        assert_eq!(steps.last().unwrap().1, scene.effects);
+        assert_eq!(steps.last().unwrap().effects, scene.effects);
         let auto =
             Scene { time: cloth_core::scene::TimeSpec { substeps: Substeps::Auto, ..scene.time.clone() }, ..scene };
-        let bare = row_scene(&auto, EffectSet::empty());
+        let bare = row_scene(&auto, &steps[0]);
         assert_eq!(bare.time.substeps, Substeps::Fixed(stability::auto_substeps(&auto)));
+    }
+
+    #[test]
+    fn contact_has_a_row_for_each_collider_kind() {
+        use cloth_core::colliders::{ColliderSpec, Shape};
+        let mut scene = Scene::default();
+        scene.colliders.push(ColliderSpec::of(Shape::Plane { normal: [0.0, 1.0, 0.0], offset: 0.0 }));
+        scene.colliders.push(ColliderSpec::of(Shape::Capsule { a: [0.0; 3], b: [1.0, 0.0, 0.0], radius: 0.1 }));
+        let steps = steps(&scene);
+        let labels: Vec<String> = steps.iter().map(Step::label).collect();
+        let contact = labels.iter().position(|l| l == "+ Contact (sphere)").unwrap();
+        assert_eq!(labels[contact + 1..contact + 3], ["+ plane colliders", "+ capsule colliders"]);
+        assert_eq!(labels.last().unwrap(), "+ Friction");
+        // Each row keeps the colliders of its kinds only; the last keeps them all.
+        assert_eq!(row_scene(&scene, &steps[contact]).colliders.len(), 1);
+        assert_eq!(row_scene(&scene, &steps[contact + 1]).colliders.len(), 2);
+        assert_eq!(row_scene(&scene, steps.last().unwrap()).colliders, scene.colliders);
     }
 
     #[test]
@@ -217,7 +290,7 @@ mod tests {
         // Timings themselves are the benchmark's to print, not a test's to assert.
         assert!(rows.iter().all(|r| r.ms_per_frame.len() == 3 && r.ms_per_frame.median() > 0.0 && !r.gpu_timed));
         assert!(rows[0].added_cost.is_none() && rows[1..].iter().all(|r| r.added_cost.is_some()), "{rows:?}");
-        let (first, last) = (rows[1].effects, rows.last().unwrap().effects);
+        let (first, last) = (rows[1].step.effects, rows.last().unwrap().step.effects);
         assert_eq!((first.iter().count(), last), (1, scene.effects));
     }
 

@@ -18,7 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             pins: vec![Pin::Corner(Corner::TopLeft), Pin::Corner(Corner::TopRight)],
             ..Default::default()
         },
-        spheres: vec![],
+        colliders: vec![],
         air_drag: 0.5,
         effects: [
             Effect::Gravity,

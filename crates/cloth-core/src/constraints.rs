@@ -18,6 +18,7 @@
 //! The GPU shaders (`shaders/wgsl/xpbd.wgsl`, `shaders/glsl/xpbd.comp`) implement the same
 //! functions with the same names and the same order of operations.
 
+use crate::colliders::{Collider, ColliderKind, Surface, sphere_surface};
 use crate::real::{Real, Vec3};
 
 /// Projects one spring constraint. `x_a`, `x_b` are moved in place; `lambda` is the spring's
@@ -52,19 +53,23 @@ pub fn project_spring<R: Real>(
     *x_b -= n * (inverse_mass_b * delta_lambda);
 }
 
-/// Projects a vertex out of a sphere (the non-penetration constraint `|x − c| ≥ r`, with zero
-/// compliance): moves `x` to the surface along the outward normal and returns the correction's
-/// length, m (0 when outside). XPBD's counterpart of the penalty force `F_c = k_c d`.
-pub fn project_sphere<R: Real>(x: &mut Vec3<R>, center: Vec3<R>, radius: R) -> R {
-    let offset = *x - center;
-    let distance = offset.length();
-    let depth = radius - distance;
-    if depth > R::zero() && distance > R::zero() {
-        *x += offset * (depth / distance);
+/// Projects a vertex out of a collider (the non-penetration constraint `φ(x) ≥ 0`, with zero
+/// compliance) given the collider's surface seen from it: moves `x` by `−φ 1_n`, to the surface
+/// (exactly for a sphere, plane, capsule or box, whose `φ` is a true distance), and returns the
+/// correction's length, m (0 when outside). XPBD's counterpart of the penalty force `F_c = k_c d`.
+pub fn project_onto_surface<R: Real>(x: &mut Vec3<R>, surface: Surface<R>) -> R {
+    let depth = -surface.distance;
+    if depth > R::zero() {
+        *x += surface.normal * depth;
         depth
     } else {
         R::zero()
     }
+}
+
+/// Projects a vertex out of a sphere (see [`project_onto_surface`]).
+pub fn project_sphere<R: Real>(x: &mut Vec3<R>, center: Vec3<R>, radius: R) -> R {
+    project_onto_surface(x, sphere_surface(*x, center, radius))
 }
 
 /// [`project_sphere`] made continuous: a vertex that started the substep outside the sphere, at
@@ -98,13 +103,60 @@ pub fn project_sphere_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, center: 
     project_sphere(x, center, radius)
 }
 
+/// Steps of the sweep of [`project_swept`] along a path.
+pub const SWEEP_STEPS: u32 = 32;
+/// The sweep stops where `φ` falls below this fraction of the collider's thickness.
+pub const SWEEP_TOLERANCE: f64 = 0.01;
+
+/// Projects a vertex out of any collider, continuously: the sphere as
+/// [`project_sphere_swept`]; a plane (a half-space cannot be crossed and left) as
+/// [`project_onto_surface`]; a capsule or box whose path from `x_start` (outside) to `x` is
+/// longer than the collider is thick, and ends outside, is swept by sphere tracing: from the
+/// start, step along the path by `φ` (a true distance: a step never enters the collider) until
+/// `φ` falls below [`SWEEP_TOLERANCE`] of the thickness (the path enters there: the vertex is put
+/// back there) or the path ends, at most [`SWEEP_STEPS`] steps. A shorter path cannot cross the
+/// collider and ends where the usual projection puts it. `center` is where the collider ends the
+/// substep; `x_start` the vertex's start carried along with the collider. Returns the
+/// correction's length, m.
+pub fn project_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, collider: &Collider<R>, center: Vec3<R>) -> R {
+    if collider.kind == ColliderKind::Sphere {
+        return project_sphere_swept(x, x_start, center, collider.radius);
+    }
+    let end = collider.surface(center, *x);
+    if end.distance > R::zero() && collider.kind != ColliderKind::Plane {
+        let d = *x - x_start;
+        let length = d.dot(d).sqrt();
+        // A vertex that starts inside leaves: nothing to stop.
+        if length > collider.thickness && collider.surface(center, x_start).distance >= R::zero() {
+            let (inverse_length, stop) = (R::one() / length, collider.thickness * R::of(SWEEP_TOLERANCE));
+            let mut s = R::zero();
+            for _ in 0..SWEEP_STEPS {
+                let p = x_start + d * s;
+                // (φ may fall just below 0 by rounding after a step onto a face: the path enters there.)
+                let phi = collider.surface(center, p).distance;
+                if phi <= stop {
+                    let moved = (*x - p).length();
+                    *x = p;
+                    return moved;
+                }
+                s = s + phi * inverse_length;
+                if s >= R::one() {
+                    break;
+                }
+            }
+        }
+        return R::zero();
+    }
+    project_onto_surface(x, end)
+}
+
 /// Coulomb friction on a contact, in position form (the model's
 /// `F_f = −min(|R_ot|, c_f |R_on|) 1_t` with displacements for forces, as XPBD does it): the
 /// tangential part of the substep's displacement `x − x_start` is undone when it is within `c_f`
-/// times the normal correction the spheres made (static friction: the vertex sticks), and
-/// shortened by that much otherwise (kinetic friction). `x` is the projected position, m; a vertex
-/// not on the sphere (beyond a relative `1e-6` of its radius) is left alone. Returns the new
-/// position.
+/// times the normal correction the colliders made (static friction: the vertex sticks), and
+/// shortened by that much otherwise (kinetic friction). `x` is the projected position, m, and
+/// `surface` the collider's surface seen from it; a vertex not on the collider (`φ` beyond its
+/// `tolerance`, m) is left alone. Returns the new position.
 ///
 /// Applied to velocities instead (cutting the tangential velocity after the substep), friction
 /// cannot hold anything: the position has already slid by `g sin θ Δt²` in every substep, a creep
@@ -113,17 +165,15 @@ pub fn project_sphere_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, center: 
 pub fn contact_friction<R: Real>(
     x: Vec3<R>,
     x_start: Vec3<R>,
-    center: Vec3<R>,
-    radius: R,
+    surface: Surface<R>,
+    tolerance: R,
     coefficient: R,
     normal_correction: R,
 ) -> Vec3<R> {
-    let offset = x - center;
-    let distance = offset.length();
-    if distance <= R::zero() || distance > radius * R::of(1.0 + 1e-6) {
+    if surface.distance > tolerance {
         return x;
     }
-    let n = offset * (R::one() / distance);
+    let n = surface.normal;
     let dx = x - x_start;
     let dx_t = dx - n * dx.dot(n);
     let slide = dx_t.length();
@@ -200,11 +250,41 @@ mod tests {
         // Both end points are on the sphere, 3 mm and 20 mm from the start along it.
         let on_sphere = |s: f64| v(s, (1.0 - s * s).sqrt(), 0.);
         let start = v(0., 1.0, 0.);
-        let held = contact_friction(on_sphere(0.003), start, c, 1.0, 0.5, 0.01);
+        let friction = |x| contact_friction(x, start, sphere_surface(x, c, 1.0), 1e-6, 0.5, 0.01);
+        let held = friction(on_sphere(0.003));
         assert!(held.x.abs() < 1e-5, "static: back where it started, {held:?}");
-        let slid = contact_friction(on_sphere(0.02), start, c, 1.0, 0.5, 0.01);
+        let slid = friction(on_sphere(0.02));
         assert!((slid.x - 0.015).abs() < 1e-4, "kinetic: 5 mm shorter, {slid:?}");
         // Off the sphere, no friction.
-        assert_eq!(contact_friction(v(0.02, 1.1, 0.), start, c, 1.0, 0.5, 0.01), v(0.02, 1.1, 0.));
+        assert_eq!(friction(v(0.02, 1.1, 0.)), v(0.02, 1.1, 0.));
+    }
+
+    #[test]
+    fn a_path_through_a_box_or_capsule_is_stopped_where_it_entered() {
+        use crate::colliders::{ColliderSpec, Shape};
+        let slab = Collider::<f64>::of(&ColliderSpec::of(Shape::Box {
+            center: [0., 0., 0.],
+            half_extents: [1., 0.05, 1.],
+            axis: [0., 1., 0.],
+            angle: 0.0,
+            rounding: 0.0,
+        }));
+        // Straight down through a 10 cm slab, and slanted at 30° from the face.
+        let mut x = v(0., -0.5, 0.);
+        let moved = project_swept(&mut x, v(0., 0.5, 0.), &slab, slab.center);
+        assert!((x.y - 0.05).abs() <= 0.01 * 0.1 + 1e-12 && x.y >= 0.05 - 1e-12, "{x:?}");
+        assert!((moved - (x.y + 0.5)).abs() < 1e-12);
+        let start = v(-0.5, 0.3, 0.);
+        let mut x = start + v(3f64.sqrt(), -1.0, 0.) * 0.8;
+        project_swept(&mut x, start, &slab, slab.center);
+        assert!(x.y >= 0.05 - 1e-12 && x.y < 0.05 + 0.002, "slanted {x:?}");
+        // A short path ending outside (a slide along the face) is left alone.
+        let mut x = v(0.05, 0.0501, 0.);
+        assert_eq!(project_swept(&mut x, v(0., 0.0501, 0.), &slab, slab.center), 0.0);
+        let capsule =
+            Collider::<f64>::of(&ColliderSpec::of(Shape::Capsule { a: [0., 0., -1.], b: [0., 0., 1.], radius: 0.1 }));
+        let mut x = v(0.5, 0.0, 0.2);
+        project_swept(&mut x, v(-0.5, 0.0, 0.2), &capsule, capsule.center);
+        assert!(x.x <= -0.1 + 1e-12 && x.x > -0.102, "{x:?}");
     }
 }

@@ -1,7 +1,7 @@
 //! Effects are data: a scene names the physical effects it simulates.
 //!
 //! An effect a scene leaves out costs nothing: no springs are generated for an
-//! absent spring kind, no buffer space is reserved for absent spheres, and the GPU
+//! absent spring kind, no buffer space is reserved for absent colliders, and the GPU
 //! backends compile the corresponding shader code out (WGSL `override` constants,
 //! Vulkan specialization constants) using [`EffectSet::shader_constants`].
 
@@ -20,9 +20,10 @@ pub enum Effect {
     BendSprings,
     /// Damping along each spring's extension rate, `F_d = -c_d v_s`.
     SpringDamping,
-    /// Penalty contact with the spheres, `F_c = k_c d`.
-    SphereContact,
-    /// Friction between the spheres and the cloth (needs `SphereContact`).
+    /// Penalty contact with the colliders, `F_c = k_c d` (read as `SphereContact` too).
+    #[serde(alias = "SphereContact")]
+    Contact,
+    /// Friction between the colliders and the cloth (needs `Contact`).
     Friction,
     /// Linear air drag `F = -m γ v` (an addition to the mass-spring model; helps a drape settle).
     AirDrag,
@@ -30,8 +31,9 @@ pub enum Effect {
     Wind,
     /// The pins follow `cloth.pin_motion` (moving attachments) instead of staying put.
     MovingPins,
-    /// The spheres follow their `motion` instead of staying put.
-    MovingSpheres,
+    /// The colliders follow their `motion` instead of staying put (read as `MovingSpheres` too).
+    #[serde(alias = "MovingSpheres")]
+    MovingColliders,
 }
 
 impl Effect {
@@ -42,12 +44,12 @@ impl Effect {
         Effect::ShearSprings,
         Effect::BendSprings,
         Effect::SpringDamping,
-        Effect::SphereContact,
+        Effect::Contact,
         Effect::Friction,
         Effect::AirDrag,
         Effect::Wind,
         Effect::MovingPins,
-        Effect::MovingSpheres,
+        Effect::MovingColliders,
     ];
 
     /// Name of the boolean shader constant that compiles this effect in or out
@@ -59,12 +61,12 @@ impl Effect {
             Effect::ShearSprings => "EFFECT_SHEAR",
             Effect::BendSprings => "EFFECT_BEND",
             Effect::SpringDamping => "EFFECT_SPRING_DAMPING",
-            Effect::SphereContact => "EFFECT_CONTACT",
+            Effect::Contact => "EFFECT_CONTACT",
             Effect::Friction => "EFFECT_FRICTION",
             Effect::AirDrag => "EFFECT_AIR_DRAG",
             Effect::Wind => "EFFECT_WIND",
             Effect::MovingPins => "EFFECT_MOVING_PINS",
-            Effect::MovingSpheres => "EFFECT_MOVING_SPHERES",
+            Effect::MovingColliders => "EFFECT_MOVING_COLLIDERS",
         }
     }
 
@@ -87,8 +89,8 @@ impl EffectSet {
         Self { bits: 0 }
     }
 
-    /// The mass-spring model's effects: gravity, the three spring kinds with damping, sphere
-    /// contact and friction (no air drag).
+    /// The mass-spring model's effects: gravity, the three spring kinds with damping, contact
+    /// and friction (no air drag).
     pub fn mass_spring() -> Self {
         Self::from_iter([
             Effect::Gravity,
@@ -96,7 +98,7 @@ impl EffectSet {
             Effect::ShearSprings,
             Effect::BendSprings,
             Effect::SpringDamping,
-            Effect::SphereContact,
+            Effect::Contact,
             Effect::Friction,
         ])
     }

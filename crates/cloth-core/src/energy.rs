@@ -14,7 +14,7 @@ pub struct Energy {
     pub elastic: [f64; 3],
     /// `−Σ m g · x` over the free vertices (zero at the origin).
     pub gravitational: f64,
-    /// `Σ ½ k_c d²` over the vertices inside a sphere.
+    /// `Σ ½ k_c d²` over the vertices inside a collider (`d = −φ`, see [`crate::colliders`]).
     pub contact: f64,
 }
 
@@ -50,18 +50,16 @@ impl Energy {
             let stretch = crate::springs::distance(p(s.a as usize), p(s.b as usize)) - s.rest_length;
             e.elastic[s.kind as usize] += 0.5 * k * stretch * stretch;
         }
-        if scene.effects.contains(Effect::SphereContact) {
-            for sphere in &scene.spheres {
-                // Where the sphere is at the state's time.
-                let mut center = sphere.center;
-                if scene.effects.contains(Effect::MovingSpheres) {
-                    let d = crate::motion::MotionOf::<f64>::of(&sphere.motion).displacement(state.time_s).to_f64();
-                    center = [center[0] + d[0], center[1] + d[1], center[2] + d[2]];
-                }
+        if scene.effects.contains(Effect::Contact) {
+            let moving = scene.effects.contains(Effect::MovingColliders);
+            for spec in &scene.colliders {
+                let collider = crate::colliders::Collider::<f64>::of(spec);
+                // Where the collider is at the state's time.
+                let (center, _) = collider.at(state.time_s, moving);
                 for i in 0..state.positions.len() {
-                    let depth = sphere.radius - crate::springs::distance(p(i), center);
+                    let depth = -collider.surface(center, crate::real::Vec3::from_f64(p(i))).distance;
                     if depth > 0.0 {
-                        e.contact += 0.5 * sphere.stiffness * depth * depth;
+                        e.contact += 0.5 * spec.stiffness * depth * depth;
                     }
                 }
             }

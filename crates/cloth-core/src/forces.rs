@@ -4,6 +4,7 @@
 //! `f64`. The GPU shaders (`shaders/wgsl/`, `shaders/glsl/`) implement the same functions
 //! with the same names and the same operation order.
 
+use crate::colliders::Surface;
 use crate::real::{Real, Vec3};
 
 /// Gravity, `F_g = m g` (N), with `m` in kg and `g` in m/s².
@@ -80,37 +81,29 @@ pub fn wind_force<R: Real>(normal: Vec3<R>, v: Vec3<R>, wind: Vec3<R>, coefficie
     normal * (coefficient_area * (wind - v).dot(normal))
 }
 
-/// A vertex in contact with a sphere.
+/// A vertex in contact with a collider.
 #[derive(Clone, Copy, Debug)]
 pub struct Contact<R> {
-    /// Outward unit normal of the sphere at the vertex, `1_n`.
+    /// Outward unit normal of the collider at the vertex, `1_n`.
     pub normal: Vec3<R>,
-    /// Penetration depth, m (> 0).
+    /// Penetration depth `d = −φ`, m (> 0).
     pub depth: R,
     /// Penalty force plus normal damping, N.
     pub force: Vec3<R>,
 }
 
-/// Penalty contact with a sphere, `F_c = k_c d` (N), where `d = depth · 1_n` is the
-/// penetration vector and `k_c` the contact stiffness (N/m), plus a normal damping
+/// Penalty contact with a collider whose surface seen from the vertex is `surface` (signed
+/// distance `φ`, normal `1_n`; see [`crate::colliders`]): `F_c = k_c d` (N) with the penetration
+/// vector `d = −φ 1_n` and the contact stiffness `k_c` (N/m), plus a normal damping
 /// `−c_n min(v·1_n, 0) 1_n` (N·s/m) that resists only the approach, so the contact never pulls.
-/// Returns `None` when the vertex is outside the sphere.
-pub fn contact_force<R: Real>(
-    x: Vec3<R>,
-    v: Vec3<R>,
-    center: Vec3<R>,
-    radius: R,
-    stiffness: R,
-    damping: R,
-) -> Option<Contact<R>> {
-    let offset = x - center;
-    let distance = offset.length();
-    let depth = radius - distance;
+/// `v` is the vertex's velocity relative to the collider. Returns `None` when the vertex is
+/// outside (`φ ≥ 0`). The same function for every collider kind.
+pub fn contact_force<R: Real>(v: Vec3<R>, surface: Surface<R>, stiffness: R, damping: R) -> Option<Contact<R>> {
+    let depth = -surface.distance;
     if depth <= R::zero() {
         return None;
     }
-    let normal =
-        if distance > R::zero() { offset * (R::one() / distance) } else { Vec3::new(R::zero(), R::one(), R::zero()) };
+    let normal = surface.normal;
     let approach = v.dot(normal).min(R::zero());
     let force = normal * (stiffness * depth - damping * approach);
     Some(Contact { normal, depth, force })
@@ -227,10 +220,16 @@ mod tests {
 
     #[test]
     fn contact_pushes_out_along_the_normal() {
-        let c = contact_force(v(0., 0.9, 0.), v(0., 0., 0.), v(0., 0., 0.), 1.0, 100.0, 0.0).unwrap();
+        let sphere = |x| crate::colliders::sphere_surface(x, v(0., 0., 0.), 1.0);
+        let c = contact_force(v(0., 0., 0.), sphere(v(0., 0.9, 0.)), 100.0, 0.0).unwrap();
         assert!((c.depth - 0.1).abs() < 1e-12);
         assert!((c.force.y - 10.0).abs() < 1e-9);
-        assert!(contact_force(v(0., 1.1, 0.), v(0., 0., 0.), v(0., 0., 0.), 1.0, 100.0, 0.0).is_none());
+        assert!(contact_force(v(0., 0., 0.), sphere(v(0., 1.1, 0.)), 100.0, 0.0).is_none());
+        // Approaching at 2 m/s with c_n = 0.5 adds 1 N; leaving adds nothing.
+        let c = contact_force(v(0., -2., 0.), sphere(v(0., 0.9, 0.)), 100.0, 0.5).unwrap();
+        assert!((c.force.y - 11.0).abs() < 1e-9);
+        let c = contact_force(v(0., 2., 0.), sphere(v(0., 0.9, 0.)), 100.0, 0.5).unwrap();
+        assert!((c.force.y - 10.0).abs() < 1e-9);
     }
 
     #[test]

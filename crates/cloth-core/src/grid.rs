@@ -26,16 +26,19 @@ impl Grid {
         let [nx, ny] = spec.resolution;
         let (u, v) = spec.orientation.axes();
         let [su, sv] = spec.size;
+        let n = normalise([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]);
+        let ripple = spec.ripple;
         let mut positions = Vec::with_capacity(nx as usize * ny as usize);
         for j in 0..ny {
             for i in 0..nx {
                 let a = (i as f64 / (nx - 1).max(1) as f64 - 0.5) * su;
                 let b = (j as f64 / (ny - 1).max(1) as f64 - 0.5) * sv;
-                positions.push([
-                    spec.center[0] + a * u[0] + b * v[0],
-                    spec.center[1] + a * u[1] + b * v[1],
-                    spec.center[2] + a * u[2] + b * v[2],
-                ]);
+                let w = if ripple.amplitude != 0.0 {
+                    ripple.amplitude * (std::f64::consts::TAU * (b + 0.5 * sv) / ripple.wavelength).sin()
+                } else {
+                    0.0
+                };
+                positions.push([0, 1, 2].map(|k| spec.center[k] + a * u[k] + b * v[k] + w * n[k]));
             }
         }
         let mut pinned = vec![false; positions.len()];
@@ -128,6 +131,18 @@ mod tests {
         assert_eq!(g.positions[0], [-2.0, 1.0, 1.0]);
         assert_eq!(g.positions[14], [2.0, 1.0, -1.0]);
         assert_eq!(g.triangle_indices().len(), 6 * 4 * 2);
+    }
+
+    #[test]
+    fn a_ripple_moves_the_rows_along_the_normal() {
+        let ripple = crate::scene::Ripple { amplitude: 0.1, wavelength: 4.0 };
+        let spec = ClothSpec { resolution: [2, 5], size: [1.0, 4.0], ripple, ..Default::default() };
+        let g = Grid::new(&spec);
+        // Horizontal: the normal is +Y; rows 0..4 are 1 m apart, a quarter wavelength.
+        let heights: Vec<f64> = (0..5).map(|j| g.positions[2 * j][1] - spec.center[1]).collect();
+        for (h, expected) in heights.iter().zip([0.0, 0.1, 0.0, -0.1, 0.0]) {
+            assert!((h - expected).abs() < 1e-12, "{heights:?}");
+        }
     }
 
     #[test]

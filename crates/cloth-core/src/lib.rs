@@ -5,12 +5,13 @@
 //! * [`scene`]: what to simulate, loaded from RON ([`Scene`]), and [`validation`], with the
 //!   limits of [`budget`];
 //! * [`effects`]: the physical effects a scene switches on ([`EffectSet`]);
+//! * [`colliders`]: spheres, ground planes, capsules and boxes, and their signed distances;
 //! * [`grid`] and [`springs`]: the `nx × ny` mesh and its structural, shear and bend springs;
 //! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
 //! * [`coloring`]: the springs in sets that share no vertex (XPBD's parallel projection order);
 //! * [`quantities`]: what a substep derives from a scene (masses, rest lengths, wind), once;
 //! * [`forces`]: the force model, one function per force;
-//! * [`motion`]: moving pins and spheres, and the gusting wind;
+//! * [`motion`]: moving pins and colliders, and the gusting wind;
 //! * [`constraints`]: XPBD's constraint projections, one function per constraint;
 //! * [`reference`](mod@reference): the CPU reference stepper, the test oracle;
 //! * [`integrator`]: semi-implicit Euler (the model's), velocity Verlet, RK4;
@@ -34,6 +35,7 @@
 #![warn(missing_docs)]
 
 pub mod budget;
+pub mod colliders;
 pub mod coloring;
 pub mod constraints;
 pub mod effects;

@@ -1,4 +1,4 @@
-//! Prescribed motions and the wind: where a moving pin or sphere is at time `t`, how fast it
+//! Prescribed motions and the wind: where a moving pin or collider is at time `t`, how fast it
 //! goes, and how fast the gusting wind blows. Generic over the precision, with the operations in
 //! the order the shaders use (`shaders/wgsl/common.wgsl`, `shaders/glsl/forces.glsl`).
 
@@ -45,16 +45,16 @@ pub fn wind_velocity<R: Real>(velocity: Vec3<R>, gust_amplitude: R, gust_omega: 
 }
 
 impl crate::scene::Scene {
-    /// Where sphere `index` is at simulated time `t_s` (s), m: `center + d(t)` of its
-    /// [`Motion`] when the scene has [`Effect::MovingSpheres`], else `center`. What renderers
-    /// draw; the solvers evaluate the same motion in their own precision.
-    pub fn sphere_center_at(&self, index: usize, t_s: f64) -> [f64; 3] {
-        let sphere = &self.spheres[index];
-        if !self.effects.contains(Effect::MovingSpheres) {
-            return sphere.center;
+    /// Where collider `index`'s centre (its [`crate::colliders::Shape::anchor`]) is at simulated
+    /// time `t_s` (s), m: moved by `d(t)` of its [`Motion`] when the scene has
+    /// [`Effect::MovingColliders`]. What renderers draw; the solvers evaluate the same motion in
+    /// their own precision.
+    pub fn collider_offset_at(&self, index: usize, t_s: f64) -> [f64; 3] {
+        let collider = &self.colliders[index];
+        if !self.effects.contains(Effect::MovingColliders) {
+            return [0.0; 3];
         }
-        let d = MotionOf::<f64>::of(&sphere.motion).displacement(t_s).to_f64();
-        [sphere.center[0] + d[0], sphere.center[1] + d[1], sphere.center[2] + d[2]]
+        MotionOf::<f64>::of(&collider.motion).displacement(t_s).to_f64()
     }
 
     /// How far every pin has moved from its start at simulated time `t_s` (s), m: `d(t)` of

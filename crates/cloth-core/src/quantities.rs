@@ -4,8 +4,9 @@
 //! their `f32` uniform (`cloth_gpu::layout::GpuSimParams`): neither derives a mass, an area, a
 //! rest length or a wind coefficient of its own, so they cannot disagree on one.
 
+use crate::colliders::ColliderSpec;
 use crate::effects::Effect;
-use crate::scene::{Motion, Scene, SphereSpec};
+use crate::scene::{Motion, Scene};
 use crate::springs::rest_length;
 
 /// What one substep of a scene needs, derived from the scene. Units as in the scene.
@@ -38,8 +39,8 @@ pub struct SceneQuantities {
     pub gust_omega: f64,
     /// How the pins move.
     pub pin_motion: Motion,
-    /// The spheres the cloth collides with: the scene's with `SphereContact`, none without.
-    pub spheres: Vec<SphereSpec>,
+    /// The colliders the cloth meets: the scene's with `Contact`, none without.
+    pub colliders: Vec<ColliderSpec>,
 }
 
 impl SceneQuantities {
@@ -65,7 +66,7 @@ impl SceneQuantities {
             gust_amplitude: w.gust_amplitude,
             gust_omega: 2.0 * std::f64::consts::PI / w.gust_period,
             pin_motion: scene.cloth.pin_motion,
-            spheres: if scene.effects.contains(Effect::SphereContact) { scene.spheres.clone() } else { Vec::new() },
+            colliders: if scene.effects.contains(Effect::Contact) { scene.colliders.clone() } else { Vec::new() },
         }
     }
 }

@@ -6,7 +6,8 @@
 
 use rayon::prelude::*;
 
-use crate::constraints::{contact_friction, project_sphere_swept, project_spring};
+use crate::colliders::Collider;
+use crate::constraints::{contact_friction, project_spring, project_swept};
 use crate::effects::Effect;
 use crate::error::SimError;
 use crate::forces::{
@@ -31,10 +32,10 @@ const PARALLEL_CHUNK: usize = 512;
 /// specialization constants, so an absent effect is not even a branch in the per-vertex code.
 /// (Only these small functions are instantiated 64 times; the loops around them are not, which
 /// keeps the build time.) The other effects need no bit:
-/// an absent spring kind has no springs in the list, absent contact no spheres, and the pins'
+/// an absent spring kind has no springs in the list, absent contact no colliders, and the pins'
 /// motion is computed once per substep.
 const VARIANT_EFFECTS: [Effect; 6] =
-    [Effect::Gravity, Effect::SpringDamping, Effect::AirDrag, Effect::Wind, Effect::MovingSpheres, Effect::Friction];
+    [Effect::Gravity, Effect::SpringDamping, Effect::AirDrag, Effect::Wind, Effect::MovingColliders, Effect::Friction];
 
 /// The variant bits of an effect set (see [`VARIANT_EFFECTS`]).
 fn variant_bits(effects: crate::effects::EffectSet) -> u16 {
@@ -78,28 +79,6 @@ struct Constraint<R> {
     rest_length: R,
 }
 
-/// A sphere in precision `R`.
-#[derive(Clone, Copy, Debug)]
-struct Sphere<R> {
-    center: Vec3<R>,
-    radius: R,
-    stiffness: R,
-    friction: R,
-    damping: R,
-    motion: MotionOf<R>,
-}
-
-impl<R: Real> Sphere<R> {
-    /// Centre (m) and velocity (m/s) at time `t`: moving only with the `MovingSpheres` effect.
-    fn at(&self, t: R, moving: bool) -> (Vec3<R>, Vec3<R>) {
-        if moving {
-            (self.center + self.motion.displacement(t), self.motion.velocity_at(t))
-        } else {
-            (self.center, Vec3::zero())
-        }
-    }
-}
-
 /// Parameters of one substep in precision `R` (the same values the GPU gets as `f32`).
 #[derive(Clone, Debug)]
 struct Params<R> {
@@ -109,7 +88,7 @@ struct Params<R> {
     mass: R,
     dt: R,
     air_drag: R,
-    spheres: Vec<Sphere<R>>,
+    colliders: Vec<Collider<R>>,
     /// Mean wind velocity, m/s; coefficient × area per vertex, N·s/m; gust amplitude and
     /// angular frequency, rad/s.
     wind: Vec3<R>,
@@ -125,18 +104,7 @@ struct Params<R> {
 impl<R: Real> Params<R> {
     fn new(scene: &Scene) -> Self {
         let q = SceneQuantities::of(scene);
-        let spheres = q
-            .spheres
-            .iter()
-            .map(|s| Sphere {
-                center: Vec3::from_f64(s.center),
-                radius: R::of(s.radius),
-                stiffness: R::of(s.stiffness),
-                friction: R::of(s.friction),
-                damping: R::of(s.damping),
-                motion: MotionOf::of(&s.motion),
-            })
-            .collect();
+        let colliders = q.colliders.iter().map(Collider::of).collect();
         let of3 = |v: [f64; 3]| [R::of(v[0]), R::of(v[1]), R::of(v[2])];
         Self {
             gravity: Vec3::from_f64(q.gravity),
@@ -145,7 +113,7 @@ impl<R: Real> Params<R> {
             mass: R::of(q.vertex_mass),
             dt: R::of(q.substep_dt),
             air_drag: R::of(q.air_drag),
-            spheres,
+            colliders,
             wind: Vec3::from_f64(q.wind_velocity),
             wind_coefficient_area: R::of(q.wind_coefficient_area),
             gust_amplitude: R::of(q.gust_amplitude),
@@ -184,7 +152,7 @@ pub struct ReferenceSimulator<R: Real> {
     next_velocities: Vec<Vec3<R>>,
     time_s: f64,
     /// The state's time in this precision, s, advanced as the GPU advances it (`velocity.w`):
-    /// what moving pins, moving spheres and gusts see.
+    /// what moving pins, moving colliders and gusts see.
     clock: R,
     max_penetration: R,
     substeps_run: u64,
@@ -246,8 +214,8 @@ impl<R: Real> ReferenceSimulator<R> {
         self.scene.effects.contains(Effect::MovingPins)
     }
 
-    fn moving_spheres(&self) -> bool {
-        self.scene.effects.contains(Effect::MovingSpheres)
+    fn moving_colliders(&self) -> bool {
+        self.scene.effects.contains(Effect::MovingColliders)
     }
 
     /// The read-only data of a force evaluation at state `(x, v)` and time `time`.
@@ -410,8 +378,8 @@ impl<R: Real> ReferenceSimulator<R> {
     /// XPBD (see [`Integrator::Xpbd`] and [`crate::constraints`]): predict with gravity, drag and
     /// wind, then [`XPBD_ITERATIONS`] times project every spring (colour by colour, in the order
     /// of [`crate::coloring`], so exactly what the GPU's one-dispatch-per-colour computes) and
-    /// every sphere (swept, where it is at the substep's end), apply friction to the contacts'
-    /// displacements (relative to a moving sphere), and derive the velocities `(x' − x)/Δt`.
+    /// every collider (swept, where it is at the substep's end), apply friction to the contacts'
+    /// displacements (relative to a moving collider), and derive the velocities `(x' − x)/Δt`.
     fn xpbd_substep(&mut self) {
         let p = &self.params;
         let (h, m) = (p.dt, p.mass);
@@ -425,10 +393,10 @@ impl<R: Real> ReferenceSimulator<R> {
             .map(|i| if self.pinned[i] { x0[i] + pin_step } else { x0[i] + ctx.predicted_velocity(i) * h })
             .collect();
         let inverse_mass = |i: usize| if self.pinned[i] { R::zero() } else { w };
-        let moving = self.moving_spheres();
-        // Each sphere where it ends the substep, and how far it moved during it.
-        let spheres: Vec<(Vec3<R>, Vec3<R>)> = p
-            .spheres
+        let moving = self.moving_colliders();
+        // Each collider where it ends the substep, and how far it moved during it.
+        let colliders: Vec<(Vec3<R>, Vec3<R>)> = p
+            .colliders
             .iter()
             .map(|s| {
                 let (start, _) = s.at(t, moving);
@@ -461,9 +429,8 @@ impl<R: Real> ReferenceSimulator<R> {
                 if self.pinned[i] {
                     continue;
                 }
-                for (s, &(center, moved)) in p.spheres.iter().zip(&spheres) {
-                    normal_correction[i] =
-                        normal_correction[i] + project_sphere_swept(xi, x0[i] + moved, center, s.radius);
+                for (c, &(center, moved)) in p.colliders.iter().zip(&colliders) {
+                    normal_correction[i] = normal_correction[i] + project_swept(xi, x0[i] + moved, c, center);
                 }
             }
         }
@@ -472,8 +439,9 @@ impl<R: Real> ReferenceSimulator<R> {
                 if self.pinned[i] || normal_correction[i] <= R::zero() {
                     continue;
                 }
-                for (s, &(center, moved)) in p.spheres.iter().zip(&spheres) {
-                    *xi = contact_friction(*xi, x0[i] + moved, center, s.radius, s.friction, normal_correction[i]);
+                for (c, &(center, moved)) in p.colliders.iter().zip(&colliders) {
+                    let surface = c.surface(center, *xi);
+                    *xi = contact_friction(*xi, x0[i] + moved, surface, c.tolerance, c.friction, normal_correction[i]);
                 }
             }
         }
@@ -512,18 +480,18 @@ impl<R: Real> ReferenceSimulator<R> {
         self.clock = t1;
     }
 
-    /// Deepest penetration of any vertex into any sphere right now, m (0 when none).
+    /// Deepest penetration of any vertex into any collider right now, `max −φ`, m (0 when none).
     pub fn deepest_penetration(&self) -> R {
-        let moving = self.moving_spheres();
-        let spheres: Vec<(Vec3<R>, R)> =
-            self.params.spheres.iter().map(|s| (s.at(self.clock, moving).0, s.radius)).collect();
-        if spheres.is_empty() {
+        let moving = self.moving_colliders();
+        let colliders: Vec<(&Collider<R>, Vec3<R>)> =
+            self.params.colliders.iter().map(|c| (c, c.at(self.clock, moving).0)).collect();
+        if colliders.is_empty() {
             return R::zero();
         }
         self.positions
             .par_iter()
             .with_min_len(PARALLEL_CHUNK)
-            .map(|&x| spheres.iter().map(|&(c, r)| r - (x - c).length()).fold(R::zero(), R::max))
+            .map(|&x| colliders.iter().map(|(c, center)| -c.surface(*center, x).distance).fold(R::zero(), R::max))
             .reduce(R::zero, R::max)
     }
 }
@@ -556,7 +524,7 @@ impl<const E: u16> Variant<E> {
     const SPRING_DAMPING: bool = E & 2 != 0;
     const AIR_DRAG: bool = E & 4 != 0;
     const WIND: bool = E & 8 != 0;
-    const MOVING_SPHERES: bool = E & 16 != 0;
+    const MOVING_COLLIDERS: bool = E & 16 != 0;
     const FRICTION: bool = E & 32 != 0;
 }
 
@@ -639,13 +607,13 @@ fn variant_force_and_stick<R: Real, const E: u16>(
         force += ctx.wind_force(i, v);
     }
     // Contact and friction: R_o, the resultant of the other forces, is the force so far.
-    // Against a moving sphere they act on the velocity relative to it.
+    // Against a moving collider they act on the velocity relative to it.
     let other_forces = force;
     let mut stuck = None;
-    for s in &p.spheres {
-        let (center, sphere_velocity) = s.at(ctx.time, Variant::<E>::MOVING_SPHERES);
-        let v_rel = v - sphere_velocity;
-        if let Some(contact) = contact_force(x, v_rel, center, s.radius, s.stiffness, s.damping) {
+    for s in &p.colliders {
+        let (center, collider_velocity) = s.at(ctx.time, Variant::<E>::MOVING_COLLIDERS);
+        let v_rel = v - collider_velocity;
+        if let Some(contact) = contact_force(v_rel, s.surface(center, x), s.stiffness, s.damping) {
             force += contact.force;
             if Variant::<E>::FRICTION {
                 force += friction_force(other_forces, v_rel, contact.normal, p.mass, friction_dt, s.friction);
@@ -741,7 +709,7 @@ mod tests {
             Variant::<E>::SPRING_DAMPING,
             Variant::<E>::AIR_DRAG,
             Variant::<E>::WIND,
-            Variant::<E>::MOVING_SPHERES,
+            Variant::<E>::MOVING_COLLIDERS,
             Variant::<E>::FRICTION,
         ]
     }
@@ -755,7 +723,7 @@ mod tests {
                 Effect::SpringDamping,
                 Effect::AirDrag,
                 Effect::Wind,
-                Effect::MovingSpheres,
+                Effect::MovingColliders,
                 Effect::Friction
             ]
         );

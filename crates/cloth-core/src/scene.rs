@@ -8,20 +8,25 @@
 //! Scene(
 //!     name: "drape",
 //!     cloth: (resolution: (32, 32), size: (2.0, 2.0), center: (0.0, 1.8, 0.0)),
-//!     spheres: [(center: (0.0, 1.0, 0.0), radius: 0.5)],
+//!     colliders: [(shape: Sphere(center: (0.0, 1.0, 0.0), radius: 0.5))],
 //! )
 //! ```
+//!
+//! A `spheres: [...]` list (each `(center, radius, stiffness, friction, damping, motion)`) is
+//! also read: its spheres become the first colliders. A scene that names neither `spheres` nor
+//! `colliders` has the default sphere; one that names either has exactly what it lists.
 //!
 //! Loading never panics: [`Scene::from_ron_str`] returns a [`SceneError`](crate::SceneError) that names the
 //! line and column of a syntax error, or every validation problem at once.
 
 use serde::{Deserialize, Serialize};
 
+use crate::colliders::ColliderSpec;
 use crate::effects::EffectSet;
 
 /// A complete simulation set-up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+#[serde(from = "SceneFile")]
 pub struct Scene {
     /// Short name shown in the tools. Default `"drape"`.
     pub name: String,
@@ -31,8 +36,9 @@ pub struct Scene {
     pub cloth: ClothSpec,
     /// Stiffness and damping of each spring kind.
     pub springs: SpringSpecs,
-    /// Spheres the cloth collides with. Default: one sphere of radius 0.5 m centred at (0, 1, 0).
-    pub spheres: Vec<SphereSpec>,
+    /// What the cloth collides with (see [`crate::colliders`]). Default: one sphere of radius
+    /// 0.5 m centred at (0, 1, 0).
+    pub colliders: Vec<ColliderSpec>,
     /// Gravitational acceleration `g`, m/s². Default `(0, -9.81, 0)`.
     pub gravity: [f64; 3],
     /// Air-drag rate `γ`, 1/s, for the `AirDrag` effect: `F = -m γ v`. Default 0.5.
@@ -55,13 +61,83 @@ impl Default for Scene {
             description: "A cloth falls onto a sphere and drapes over it (the default scene).".into(),
             cloth: ClothSpec::default(),
             springs: SpringSpecs::default(),
-            spheres: vec![SphereSpec::default()],
+            colliders: vec![ColliderSpec::default()],
             gravity: [0.0, -9.81, 0.0],
             air_drag: 0.5,
             wind: WindSpec::default(),
             time: TimeSpec::default(),
             integrator: crate::integrator::Integrator::default(),
             effects: EffectSet::default(),
+        }
+    }
+}
+
+/// A scene as a RON file writes it: [`Scene`]'s fields, with the `spheres` list as well as
+/// `colliders`, and neither defaulting to the default sphere when the other is given.
+#[derive(Deserialize)]
+#[serde(rename = "Scene", default, deny_unknown_fields)]
+struct SceneFile {
+    name: String,
+    description: String,
+    cloth: ClothSpec,
+    springs: SpringSpecs,
+    #[serde(deserialize_with = "given")]
+    spheres: Option<Vec<SphereSpec>>,
+    #[serde(deserialize_with = "given")]
+    colliders: Option<Vec<ColliderSpec>>,
+    gravity: [f64; 3],
+    air_drag: f64,
+    wind: WindSpec,
+    time: TimeSpec,
+    integrator: crate::integrator::Integrator,
+    effects: EffectSet,
+}
+
+/// A field that is present (RON writes a list, not `Some(list)`).
+fn given<'de, D: serde::Deserializer<'de>, T: Deserialize<'de>>(d: D) -> Result<Option<T>, D::Error> {
+    T::deserialize(d).map(Some)
+}
+
+impl Default for SceneFile {
+    fn default() -> Self {
+        let s = Scene::default();
+        Self {
+            name: s.name,
+            description: s.description,
+            cloth: s.cloth,
+            springs: s.springs,
+            spheres: None,
+            colliders: None,
+            gravity: s.gravity,
+            air_drag: s.air_drag,
+            wind: s.wind,
+            time: s.time,
+            integrator: s.integrator,
+            effects: s.effects,
+        }
+    }
+}
+
+impl From<SceneFile> for Scene {
+    fn from(f: SceneFile) -> Self {
+        let colliders = match (f.spheres, f.colliders) {
+            (None, None) => Scene::default().colliders,
+            (spheres, colliders) => {
+                spheres.into_iter().flatten().map(ColliderSpec::from).chain(colliders.into_iter().flatten()).collect()
+            }
+        };
+        Self {
+            name: f.name,
+            description: f.description,
+            cloth: f.cloth,
+            springs: f.springs,
+            colliders,
+            gravity: f.gravity,
+            air_drag: f.air_drag,
+            wind: f.wind,
+            time: f.time,
+            integrator: f.integrator,
+            effects: f.effects,
         }
     }
 }
@@ -89,6 +165,27 @@ pub struct ClothSpec {
     /// How the pins move, for the `MovingPins` effect (every pin follows the same motion from
     /// where it started). Default: no motion.
     pub pin_motion: Motion,
+    /// A wave the cloth starts folded into (its rest shape stays the flat rectangle). Default:
+    /// none (amplitude 0).
+    pub ripple: Ripple,
+}
+
+/// A starting shape: every vertex is moved along the cloth's normal by
+/// `amplitude · sin(2π b / wavelength)`, `b` its distance from row `j = 0` along `v` (m), so the
+/// cloth starts in waves across its rows, the springs stretched as the waves need.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Ripple {
+    /// Amplitude, m. Default 0 (flat).
+    pub amplitude: f64,
+    /// Wavelength along `v`, m (> 0). Default 0.4.
+    pub wavelength: f64,
+}
+
+impl Default for Ripple {
+    fn default() -> Self {
+        Self { amplitude: 0.0, wavelength: 0.4 }
+    }
 }
 
 impl ClothSpec {
@@ -110,6 +207,7 @@ impl Default for ClothSpec {
             pins: Vec::new(),
             initial_velocity: [0.0; 3],
             pin_motion: Motion::default(),
+            ripple: Ripple::default(),
         }
     }
 }
@@ -212,7 +310,8 @@ impl Default for SpringSpecs {
     }
 }
 
-/// A sphere the cloth collides with.
+/// A sphere the cloth collides with, as a scene's `spheres` list gives it (it becomes a
+/// [`ColliderSpec`] with a [`crate::colliders::Shape::Sphere`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SphereSpec {
@@ -226,7 +325,7 @@ pub struct SphereSpec {
     pub friction: f64,
     /// Damping of the normal approach velocity while in contact, N·s/m. Default 0.2.
     pub damping: f64,
-    /// How the sphere moves, for the `MovingSpheres` effect (from `center`). Default: no motion.
+    /// How the sphere moves, for the `MovingColliders` effect (from `center`). Default: no motion.
     pub motion: Motion,
 }
 

@@ -40,7 +40,7 @@ impl ClothState {
 /// Quantities a backend tracks while it runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Diagnostics {
-    /// Deepest any vertex went inside any sphere since creation (checked after every
+    /// Deepest any vertex went inside any collider since creation (checked after every
     /// substep), m.
     pub max_penetration_m: f64,
     /// Substeps run since creation.
@@ -86,12 +86,12 @@ pub trait Simulator {
     /// [`SimError::Device`] when the device fails.
     fn advance(&mut self, frames: u32) -> Result<(), SimError>;
 
-    /// Applies new parameters (stiffness, damping, masses, gravity, spheres, time step) without
+    /// Applies new parameters (stiffness, damping, masses, gravity, colliders, time step) without
     /// restarting.
     ///
     /// # Errors
     /// [`SimError::RebuildRequired`] when the change needs a new simulator (grid, pins,
-    /// effects, number of spheres), [`SimError::Scene`] when the new scene is invalid.
+    /// effects, number or kinds of colliders), [`SimError::Scene`] when the new scene is invalid.
     fn update_parameters(&mut self, scene: &Scene) -> Result<(), SimError>;
 
     /// Reads the current state back.
@@ -168,8 +168,10 @@ impl Scene {
             Some("the pins".into())
         } else if self.effects != new.effects {
             Some("the set of effects".into())
-        } else if self.spheres.len() != new.spheres.len() {
-            Some("the number of spheres".into())
+        } else if self.colliders.len() != new.colliders.len() {
+            Some("the number of colliders".into())
+        } else if self.colliders.iter().zip(&new.colliders).any(|(a, b)| a.kind() != b.kind()) {
+            Some("the kind of a collider".into())
         } else if self.integrator != new.integrator {
             Some("the integrator".into())
         } else {

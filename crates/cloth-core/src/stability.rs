@@ -10,8 +10,8 @@
 //! h < (-c + √(c² + 4ω²)) / ω²        (= 2/ω without damping)
 //! ```
 //!
-//! A sphere in contact adds its penalty stiffness `k_c` to `Σk` (once, not doubled: the sphere
-//! does not move). Masses are equal, so the most connected vertex (the grid's centre) sets
+//! Every collider adds its penalty stiffness `k_c` to `Σk` (once, not doubled: the collider
+//! does not move with the vertex; a vertex can touch all of them at once). Masses are equal, so the most connected vertex (the grid's centre) sets
 //! the bound.
 
 use crate::effects::Effect;
@@ -75,8 +75,8 @@ pub fn stiffness_and_damping_rates(scene: &Scene) -> (f64, f64) {
             c_sum += 2.0 * n * spec.damping;
         }
     }
-    if scene.effects.contains(Effect::SphereContact) {
-        for s in &scene.spheres {
+    if scene.effects.contains(Effect::Contact) {
+        for s in &scene.colliders {
             k_sum += s.stiffness;
             c_sum += s.damping;
         }
@@ -97,7 +97,7 @@ pub fn stiffness_and_damping_rates(scene: &Scene) -> (f64, f64) {
 /// 10, 0.7, 0.13 and 0.04 J, for 1.4 J of energy in the scene).
 pub const XPBD_AUTO_OMEGA_DT: f64 = 10.0;
 
-/// XPBD's `Auto` also keeps a moving sphere's travel in one substep below this fraction of the
+/// XPBD's `Auto` also keeps a moving collider's travel in one substep below this fraction of the
 /// smaller grid cell side. Its swept projection never misses the cloth, but the 10 sweeps of a
 /// substep spread the sphere's push only so far through the springs: a ball moving across a
 /// large part of a cell per substep leaves them stretched, elastic energy from nowhere (measured
@@ -105,27 +105,27 @@ pub const XPBD_AUTO_OMEGA_DT: f64 = 10.0;
 /// at 5 substeps per frame, 0.37 cells per substep, the f64 run's energy reached 19.7 J for
 /// 1.0 J at the start; at 10, 0.18 cells, the f32 run's reached 14.8 J; at 19, 0.1 cells, both
 /// stayed below 5.8 J, what the ball can give).
-pub const XPBD_AUTO_SPHERE_CELLS: f64 = 0.1;
+pub const XPBD_AUTO_COLLIDER_CELLS: f64 = 0.1;
 
 /// The substep `Substeps::Auto` aims below, s: `Auto::SAFETY × h_max` for the force-based
 /// integrators; for XPBD, `XPBD_AUTO_OMEGA_DT / ω_max` (`ω_max` of the springs alone: its
-/// spheres are constraints, not penalty springs) and, with moving spheres, the step in which
-/// the fastest moves [`XPBD_AUTO_SPHERE_CELLS`] of a cell.
+/// colliders are constraints, not penalty springs) and, with moving colliders, the step in which
+/// the fastest moves [`XPBD_AUTO_COLLIDER_CELLS`] of a cell.
 pub fn auto_target_substep(scene: &Scene) -> f64 {
     if scene.integrator == crate::integrator::Integrator::Xpbd {
-        // Only the springs: XPBD's spheres are constraints, not penalty springs.
+        // Only the springs: XPBD's colliders are constraints, not penalty springs.
         let mut springs_only = scene.clone();
-        springs_only.effects.set(Effect::SphereContact, false);
+        springs_only.effects.set(Effect::Contact, false);
         let (omega_sq, _) = stiffness_and_damping_rates(&springs_only);
         let springs = if omega_sq > 0.0 { XPBD_AUTO_OMEGA_DT / omega_sq.sqrt() } else { f64::INFINITY };
-        let moving = scene.effects.contains(Effect::MovingSpheres) && scene.effects.contains(Effect::SphereContact);
-        let speed = if moving { scene.spheres.iter().map(|s| s.motion.max_speed()).fold(0.0, f64::max) } else { 0.0 };
+        let moving = scene.effects.contains(Effect::MovingColliders) && scene.effects.contains(Effect::Contact);
+        let speed = if moving { scene.colliders.iter().map(|s| s.motion.max_speed()).fold(0.0, f64::max) } else { 0.0 };
         if speed <= 0.0 {
             return springs;
         }
         let [du, dv] = scene.cloth.spacing();
         let cell = du.min(dv);
-        return springs.min(XPBD_AUTO_SPHERE_CELLS * cell / speed);
+        return springs.min(XPBD_AUTO_COLLIDER_CELLS * cell / speed);
     }
     stable_substep(scene) * Auto::SAFETY
 }
@@ -223,8 +223,8 @@ pub fn spectral_stable_substep(model: &crate::model::ClothModel) -> f64 {
     }
     let mut omega_sq = lambda / m;
     let (_, damping_rate) = stiffness_and_damping_rates(scene);
-    if scene.effects.contains(Effect::SphereContact) {
-        omega_sq += scene.spheres.iter().map(|s| s.stiffness).sum::<f64>() / m;
+    if scene.effects.contains(Effect::Contact) {
+        omega_sq += scene.colliders.iter().map(|s| s.stiffness).sum::<f64>() / m;
     }
     bound(omega_sq, damping_rate) * scene.integrator.stability_limit() / 2.0
 }

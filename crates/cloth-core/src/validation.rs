@@ -1,6 +1,7 @@
 //! Scene validation: every problem at once, each naming the field and the fix.
 
 use crate::budget::{F32_MEANINGFUL, MAX_FRAMES, MAX_SUBSTEPS_PER_FRAME};
+use crate::colliders::{ColliderSpec, Shape};
 use crate::effects::Effect;
 use crate::error::{Problem, SceneError};
 use crate::grid::pin_indices;
@@ -78,6 +79,68 @@ impl Checker {
             ok &= self.finite(&format!("{field}[{i}]"), *x);
         }
         ok
+    }
+
+    /// A collider: its shape's sizes, its contact parameters and its motion.
+    fn collider(&mut self, field: &str, collider: &ColliderSpec) {
+        let f = |name: &str| format!("{field}.{name}");
+        match &collider.shape {
+            Shape::Sphere { center, radius } => {
+                self.vector(&f("shape.Sphere.center"), *center);
+                self.positive(&f("shape.Sphere.radius"), *radius, "m");
+            }
+            Shape::Plane { normal, offset } => {
+                if self.vector(&f("shape.Plane.normal"), *normal) && normal.iter().all(|x| *x == 0.0) {
+                    self.fail(
+                        f("shape.Plane.normal"),
+                        "is (0, 0, 0): a plane needs a direction",
+                        "give the outward direction, e.g. (0, 1, 0) for a ground",
+                    );
+                }
+                self.finite(&f("shape.Plane.offset"), *offset);
+            }
+            Shape::Capsule { a, b, radius } => {
+                let ends = self.vector(&f("shape.Capsule.a"), *a) & self.vector(&f("shape.Capsule.b"), *b);
+                self.positive(&f("shape.Capsule.radius"), *radius, "m");
+                if ends && a == b {
+                    self.fail(
+                        f("shape.Capsule.b"),
+                        format!("equals a, {a:?}: the capsule has no axis"),
+                        "give two distinct ends (a sphere is Sphere(center, radius))",
+                    );
+                }
+            }
+            Shape::Box { center, half_extents, axis, angle, rounding } => {
+                self.vector(&f("shape.Box.center"), *center);
+                let mut sides = true;
+                for (i, h) in half_extents.iter().enumerate() {
+                    let before = self.problems.len() + self.more;
+                    self.positive(&f(&format!("shape.Box.half_extents[{i}]")), *h, "m");
+                    sides &= self.problems.len() + self.more == before;
+                }
+                if self.vector(&f("shape.Box.axis"), *axis) && axis.iter().all(|x| *x == 0.0) {
+                    self.fail(
+                        f("shape.Box.axis"),
+                        "is (0, 0, 0): a rotation needs an axis",
+                        "give a direction, e.g. (0, 1, 0) (with angle 0 for no rotation)",
+                    );
+                }
+                self.finite(&f("shape.Box.angle"), *angle);
+                self.non_negative(&f("shape.Box.rounding"), *rounding, "m");
+                let smallest = half_extents.iter().copied().fold(f64::INFINITY, f64::min);
+                if sides && rounding.is_finite() && *rounding > smallest {
+                    self.fail(
+                        f("shape.Box.rounding"),
+                        format!("is {rounding} m, more than the smallest half extent, {smallest} m"),
+                        format!("give a rounding between 0 and {smallest} m"),
+                    );
+                }
+            }
+        }
+        self.non_negative(&f("stiffness"), collider.stiffness, "N/m");
+        self.non_negative(&f("friction"), collider.friction, "(dimensionless)");
+        self.non_negative(&f("damping"), collider.damping, "N·s/m");
+        self.motion(&f("motion"), &collider.motion);
     }
 
     fn motion(&mut self, field: &str, m: &crate::scene::Motion) {
@@ -169,16 +232,13 @@ impl Scene {
         c.spring("springs.structural", &self.springs.structural);
         c.spring("springs.shear", &self.springs.shear);
         c.spring("springs.bend", &self.springs.bend);
-        for (k, s) in self.spheres.iter().enumerate() {
-            let f = |name: &str| format!("spheres[{k}].{name}");
-            c.vector(&f("center"), s.center);
-            c.positive(&f("radius"), s.radius, "m");
-            c.non_negative(&f("stiffness"), s.stiffness, "N/m");
-            c.non_negative(&f("friction"), s.friction, "(dimensionless)");
-            c.non_negative(&f("damping"), s.damping, "N·s/m");
-            c.motion(&f("motion"), &s.motion);
+        for (k, collider) in self.colliders.iter().enumerate() {
+            c.collider(&format!("colliders[{k}]"), collider);
         }
         c.motion("cloth.pin_motion", &cloth.pin_motion);
+        if c.finite("cloth.ripple.amplitude", cloth.ripple.amplitude) && cloth.ripple.amplitude != 0.0 {
+            c.positive("cloth.ripple.wavelength", cloth.ripple.wavelength, "m");
+        }
         c.vector("wind.velocity", self.wind.velocity);
         c.non_negative("wind.gust_amplitude", self.wind.gust_amplitude, "(relative)");
         c.positive("wind.gust_period", self.wind.gust_period, "s");
@@ -206,11 +266,11 @@ impl Scene {
                 format!("use at most {MAX_FRAMES}"),
             );
         }
-        if self.effects.contains(Effect::Friction) && !self.effects.contains(Effect::SphereContact) {
+        if self.effects.contains(Effect::Friction) && !self.effects.contains(Effect::Contact) {
             c.fail(
                 "effects",
-                "Friction is listed without SphereContact; friction acts only in contact",
-                "add SphereContact or remove Friction",
+                "Friction is listed without Contact; friction acts only in contact",
+                "add Contact or remove Friction",
             );
         }
         if c.more > 0 {
@@ -319,7 +379,7 @@ mod tests {
         let mut s = Scene::default();
         s.cloth.resolution = [1, 0];
         s.cloth.mass = Mass::PerVertex(-1.0);
-        s.spheres = vec![SphereSpec { radius: 0.0, friction: -0.1, ..Default::default() }];
+        s.colliders = vec![SphereSpec { radius: 0.0, friction: -0.1, ..Default::default() }.into()];
         s.springs.shear.stiffness = -5.0;
         s.time.frame_dt = f64::NAN;
         s.time.substeps = Substeps::Fixed(0);
@@ -329,8 +389,8 @@ mod tests {
             "cloth.resolution[0]",
             "cloth.resolution[1]",
             "cloth.mass.PerVertex",
-            "spheres[0].radius",
-            "spheres[0].friction",
+            "colliders[0].shape.Sphere.radius",
+            "colliders[0].friction",
             "springs.shear.stiffness",
             "time.frame_dt",
             "time.substeps",
@@ -384,7 +444,7 @@ mod tests {
     #[test]
     fn friction_needs_contact() {
         let mut s = Scene::default();
-        s.effects = s.effects.without(Effect::SphereContact);
+        s.effects = s.effects.without(Effect::Contact);
         assert_eq!(fields(&s), ["effects"]);
     }
 

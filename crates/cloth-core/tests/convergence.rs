@@ -20,7 +20,7 @@ fn smooth_scene(integrator: Integrator, duration: f64, substeps: u32) -> Scene {
             initial_velocity: [0.0, 0.0, 0.4],
             ..Default::default()
         },
-        spheres: vec![],
+        colliders: vec![],
         effects: [Effect::Gravity, Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings]
             .into_iter()
             .collect(),

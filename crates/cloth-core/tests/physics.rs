@@ -15,7 +15,7 @@ fn load(name: &str) -> Scene {
 fn bare(effects: &[Effect], resolution: [u32; 2]) -> Scene {
     Scene {
         cloth: ClothSpec { resolution, size: [1.0, 1.0], center: [0.0, 2.0, 0.0], ..Default::default() },
-        spheres: vec![],
+        colliders: vec![],
         effects: effects.iter().copied().collect(),
         ..Default::default()
     }
@@ -94,7 +94,7 @@ fn pinned_vertices_never_move() {
 #[test]
 fn drape_rests_on_the_sphere_without_sinking_into_it() {
     let scene = load("drape.ron");
-    let sphere = scene.spheres[0].clone();
+    let sphere = scene.colliders[0].sphere().unwrap();
     let mut sim = CpuSimulator::new(&scene).unwrap();
     sim.advance(scene.time.frames).unwrap();
     let state = sim.read_state().unwrap();
@@ -126,7 +126,7 @@ fn is_off_the_sphere(state: &cloth_core::ClothState, sphere: &SphereSpec) -> boo
 fn slide_leaves_the_frictionless_sphere_and_hold_stays() {
     for (name, should_leave) in [("slide.ron", true), ("hold.ron", false)] {
         let scene = load(name);
-        let sphere = scene.spheres[0].clone();
+        let sphere = scene.colliders[0].sphere().unwrap();
         let mut sim = CpuSimulator::new(&scene).unwrap();
         sim.advance(scene.time.frames).unwrap();
         let state = sim.read_state().unwrap();
@@ -229,8 +229,11 @@ fn every_integrator_drapes_without_nan_or_deep_penetration() {
         let state = sim.read_state().unwrap();
         assert_eq!(state.non_finite_count(), 0, "{integrator:?}");
         let depth = sim.diagnostics().unwrap().max_penetration_m;
-        assert!(depth < 0.02 * scene.spheres[0].radius, "{integrator:?}: penetration {depth} m");
-        assert!(state.centroid()[1] > scene.spheres[0].center[1], "{integrator:?}: rests on the sphere");
+        assert!(depth < 0.02 * scene.colliders[0].sphere().unwrap().radius, "{integrator:?}: penetration {depth} m");
+        assert!(
+            state.centroid()[1] > scene.colliders[0].sphere().unwrap().center[1],
+            "{integrator:?}: rests on the sphere"
+        );
     }
 }
 
@@ -247,7 +250,7 @@ fn xpbd_stays_stable_far_beyond_the_explicit_bound() {
     sim.advance(scene.time.frames).unwrap();
     let state = sim.read_state().unwrap();
     assert_eq!(state.non_finite_count(), 0);
-    let sphere = &scene.spheres[0];
+    let sphere = &scene.colliders[0].sphere().unwrap();
     assert!(sim.diagnostics().unwrap().max_penetration_m < 0.02 * sphere.radius);
     // It rests on the sphere: its highest point on the sphere's top, its centroid over the
     // sphere. (With 2 substeps of 10 iterations the cloth is softer than its springs' k, a known

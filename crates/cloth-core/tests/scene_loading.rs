@@ -6,12 +6,80 @@ use proptest::prelude::*;
 #[test]
 fn shipped_scenes_load_and_drape_is_the_default() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
-    for name in ["drape", "hanging", "slide", "hold"] {
+    for name in ["drape", "hanging", "slide", "hold", "floor", "table", "capsule", "heap"] {
         let scene = Scene::load(&dir.join(format!("{name}.ron"))).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(scene.name, name);
         assert_eq!(scene.validate().unwrap(), vec![], "{name} has warnings");
     }
     assert_eq!(Scene::load(&dir.join("drape.ron")).unwrap(), Scene::default(), "drape.ron is Scene::default()");
+}
+
+#[test]
+fn spheres_and_colliders_lists_both_load_as_colliders() {
+    use cloth_core::colliders::{ColliderKind, Shape};
+    // Neither list: the default sphere. Either: exactly what it lists, spheres first.
+    assert_eq!(Scene::from_ron_str("Scene()").unwrap().colliders, Scene::default().colliders);
+    let only_colliders = Scene::from_ron_str("Scene(colliders: [(shape: Plane())])").unwrap();
+    assert_eq!(only_colliders.colliders.len(), 1, "no default sphere beside the listed colliders");
+    assert_eq!(only_colliders.colliders[0].shape, Shape::Plane { normal: [0.0, 1.0, 0.0], offset: 0.0 });
+    let none = Scene::from_ron_str("Scene(spheres: [])").unwrap();
+    assert!(none.colliders.is_empty());
+    let both = Scene::from_ron_str(
+        "Scene(spheres: [(radius: 0.3)], colliders: [(shape: Capsule(a: (0, 0, 0), b: (1, 0, 0), radius: 0.1)), \
+         (shape: Box(center: (0, 0, 0), half_extents: (1, 1, 1)), friction: 0.9)])",
+    )
+    .unwrap();
+    let kinds: Vec<ColliderKind> = both.colliders.iter().map(|c| c.kind()).collect();
+    assert_eq!(kinds, [ColliderKind::Sphere, ColliderKind::Capsule, ColliderKind::Box]);
+    assert_eq!(both.colliders[2].friction, 0.9);
+    // The old effect names still read.
+    let old = Scene::from_ron_str("Scene(effects: [Gravity, SphereContact, MovingSpheres])").unwrap();
+    assert!(
+        old.effects.contains(cloth_core::Effect::Contact) && old.effects.contains(cloth_core::Effect::MovingColliders)
+    );
+    // And a scene with colliders round-trips (written as one colliders list).
+    assert_eq!(Scene::from_ron_str(&both.to_ron_string()).unwrap(), both);
+}
+
+#[test]
+fn degenerate_colliders_are_refused_by_field() {
+    let cases = [
+        ("Scene(colliders: [(shape: Plane(normal: (0, 0, 0)))])", "colliders[0].shape.Plane.normal: is (0, 0, 0)"),
+        (
+            "Scene(colliders: [(shape: Capsule(a: (0, 1, 0), b: (0, 1, 0), radius: 0.1))])",
+            "colliders[0].shape.Capsule.b: equals a",
+        ),
+        (
+            "Scene(colliders: [(shape: Capsule(a: (0, 1, 0), b: (1, 1, 0), radius: 0.0))])",
+            "colliders[0].shape.Capsule.radius: is 0 m, must be greater than 0",
+        ),
+        (
+            "Scene(colliders: [(shape: Box(center: (0, 0, 0), half_extents: (1, 0, 1)))])",
+            "colliders[0].shape.Box.half_extents[1]: is 0 m, must be greater than 0",
+        ),
+        (
+            "Scene(colliders: [(shape: Box(center: (0, 0, 0), half_extents: (1, -2, 1)))])",
+            "colliders[0].shape.Box.half_extents[1]: is -2 m, must be greater than 0",
+        ),
+        (
+            "Scene(colliders: [(shape: Box(center: (0, 0, 0), half_extents: (1, 0.5, 1), rounding: 0.6))])",
+            "colliders[0].shape.Box.rounding: is 0.6 m, more than the smallest half extent, 0.5 m",
+        ),
+        (
+            "Scene(colliders: [(shape: Box(center: (0, 0, 0), half_extents: (1, 1, 1), axis: (0, 0, 0), angle: 30))])",
+            "colliders[0].shape.Box.axis: is (0, 0, 0)",
+        ),
+        (
+            "Scene(colliders: [(shape: Sphere(center: (0, 1, 0), radius: 0.5), stiffness: -1)])",
+            "colliders[0].stiffness",
+        ),
+        ("Scene(colliders: [(shape: Torus())])", "Torus"),
+        ("Scene(cloth: (ripple: (amplitude: 0.1, wavelength: 0)))", "cloth.ripple.wavelength: is 0 m"),
+    ];
+    for (text, expected) in cases {
+        let err = Scene::from_ron_str(text).unwrap_err().to_string();
+        assert!(err.contains(expected), "{text}\n  gave: {err}\n  expected: {expected}");
+    }
 }
 
 #[test]
@@ -45,13 +113,13 @@ fn the_bad_inputs_of_the_issue_each_give_their_message() {
         ("Scene(cloth: (resolution: (1, 8)))", "cloth.resolution[0]: is 1 vertices; a cloth needs at least 2"),
         ("Scene(cloth: (resolution: (0, 0)))", "cloth.resolution[1]: is 0 vertices"),
         ("Scene(cloth: (mass: PerVertex(-0.1)))", "cloth.mass.PerVertex: is -0.1 kg, must be greater than 0"),
-        ("Scene(spheres: [(radius: 0.0)])", "spheres[0].radius: is 0 m, must be greater than 0"),
+        ("Scene(spheres: [(radius: 0.0)])", "colliders[0].shape.Sphere.radius: is 0 m, must be greater than 0"),
         ("Scene(time: (frame_dt: -0.01))", "time.frame_dt: is -0.01 s, must be greater than 0"),
         (
             "Scene(springs: (bend: (stiffness: -1.0, damping: 0.0)))",
             "springs.bend.stiffness: is -1 N/m, must not be negative",
         ),
-        ("Scene(spheres: [(friction: -0.5)])", "spheres[0].friction: is -0.5 (dimensionless), must not be negative"),
+        ("Scene(spheres: [(friction: -0.5)])", "colliders[0].friction: is -0.5 (dimensionless), must not be negative"),
         ("Scene(cloth: (resolution: (4, 4), pins: [Vertex(99)]))", "cloth.pins[0]: Vertex(99) names vertex 99"),
         ("Scene(cloth: (resolution: (70000, 70000)))", "cloth.resolution: grid 70000x70000 needs about"),
     ];

@@ -8,7 +8,7 @@ use cloth_core::{ClothModel, CpuSimulatorF64, Effect, Integrator, Scene, Simulat
 fn scene(integrator: Integrator) -> Scene {
     Scene {
         cloth: ClothSpec { resolution: [10, 8], size: [0.9, 0.7], ..Default::default() },
-        spheres: vec![],
+        colliders: vec![],
         effects: [Effect::StructuralSprings, Effect::ShearSprings, Effect::BendSprings].into_iter().collect(),
         integrator,
         ..Default::default()

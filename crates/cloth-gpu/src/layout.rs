@@ -7,7 +7,7 @@
 //! generates from the Rust definitions below: a field added here and not in a shader fails it.
 //!
 //! The buffers of a simulation are listed by `plan.rs`; velocities carry the time of their state
-//! in `w` (s), so moving pins, moving spheres and gusts know the time of each stage without a
+//! in `w` (s), so moving pins, moving colliders and gusts know the time of each stage without a
 //! host round trip.
 
 use bytemuck::{Pod, Zeroable};
@@ -65,8 +65,8 @@ gpu_struct! {
         air_drag: f32,
         /// Number of vertices.
         vertex_count: u32,
-        /// Number of spheres in the sphere buffer that the kernels test.
-        sphere_count: u32,
+        /// Number of colliders in the collider buffer that the kernels test.
+        collider_count: u32,
         /// Grid vertices along u.
         grid_nx: u32,
         /// Grid vertices along v.
@@ -88,28 +88,42 @@ gpu_struct! {
 }
 
 gpu_struct! {
-    /// One sphere collider (64 bytes).
-    GpuSphere as "Sphere" {
-        /// Centre at time 0, m.
+    /// One collider (128 bytes): a [`cloth_core::colliders::Placement`] in `f32`, with its
+    /// contact parameters and motion. Every kind uses the same fields; `kind` says which
+    /// signed distance the kernels evaluate.
+    GpuCollider as "Collider" {
+        /// Centre at time 0, m (a plane's point nearest the origin, a capsule's midpoint).
         center: [f32; 3],
-        /// Radius, m.
+        /// `ColliderKind::code`: 0 sphere, 1 plane, 2 capsule, 3 box.
+        kind: u32,
+        /// First axis (a capsule's direction; a box's rotated x).
+        axis_x: [f32; 3],
+        /// Radius (sphere, capsule) or rounding (box), m.
         radius: f32,
+        /// Second axis (a plane's normal; a box's rotated y).
+        axis_y: [f32; 3],
         /// Contact stiffness `k_c`, N/m.
         stiffness: f32,
+        /// Third axis (a box's rotated z).
+        axis_z: [f32; 3],
         /// Friction coefficient `c_f`.
         friction: f32,
+        /// A capsule's half length (x); a box's half extents less the rounding, m.
+        extent: [f32; 3],
         /// Normal contact damping, N·s/m.
         damping: f32,
-        /// Padding to 32 bytes.
-        pad: f32,
         /// Motion: steady velocity, m/s.
         velocity: [f32; 3],
         /// Motion: angular frequency of the oscillation, rad/s.
         omega: f32,
         /// Motion: amplitude of the oscillation, m.
         amplitude: [f32; 3],
-        /// Padding to 64 bytes.
-        pad2: f32,
+        /// Thinnest width, m (a plane's is infinite): XPBD sweeps longer paths only.
+        thickness: f32,
+        /// Padding to 124 bytes (a `vec3` in the shaders).
+        pad: [f32; 3],
+        /// Distance within which a vertex counts as on the surface, m.
+        tolerance: f32,
     }
 }
 
@@ -144,7 +158,7 @@ gpu_struct! {
 
 /// The layouts of every struct the shaders share with the host.
 pub fn struct_layouts() -> Vec<StructLayout> {
-    vec![GpuSimParams::layout(), GpuSphere::layout(), GpuConstraint::layout(), GpuColorRange::layout()]
+    vec![GpuSimParams::layout(), GpuCollider::layout(), GpuConstraint::layout(), GpuColorRange::layout()]
 }
 
 /// Bytes between two [`GpuColorRange`]s in their uniform buffer: 256, the largest
@@ -176,7 +190,7 @@ impl GpuSimParams {
             substep_dt: f(q.substep_dt),
             air_drag: f(q.air_drag),
             vertex_count: nx.saturating_mul(ny),
-            sphere_count: q.spheres.len() as u32,
+            collider_count: q.colliders.len() as u32,
             grid_nx: nx,
             grid_ny: ny,
             effects: scene.effects.bits(),
@@ -189,32 +203,39 @@ impl GpuSimParams {
     }
 }
 
-impl GpuSphere {
-    /// A scene sphere in `f32`.
-    pub fn from_spec(s: &cloth_core::scene::SphereSpec) -> Self {
+impl GpuCollider {
+    /// A scene collider in `f32`.
+    pub fn from_spec(c: &cloth_core::colliders::ColliderSpec) -> Self {
+        let p = cloth_core::colliders::Placement::of(&c.shape);
         let f = |v: [f64; 3]| v.map(|x| x as f32);
         Self {
-            center: f(s.center),
-            radius: s.radius as f32,
-            stiffness: s.stiffness as f32,
-            friction: s.friction as f32,
-            damping: s.damping as f32,
-            pad: 0.0,
-            velocity: f(s.motion.velocity),
-            omega: s.motion.angular_frequency() as f32,
-            amplitude: f(s.motion.amplitude),
-            pad2: 0.0,
+            center: f(p.center),
+            kind: p.kind.code(),
+            axis_x: f(p.axes[0]),
+            radius: p.radius as f32,
+            axis_y: f(p.axes[1]),
+            stiffness: c.stiffness as f32,
+            axis_z: f(p.axes[2]),
+            friction: c.friction as f32,
+            extent: f(p.extent),
+            damping: c.damping as f32,
+            velocity: f(c.motion.velocity),
+            omega: c.motion.angular_frequency() as f32,
+            amplitude: f(c.motion.amplitude),
+            thickness: p.thickness as f32,
+            pad: [0.0; 3],
+            tolerance: p.tolerance as f32,
         }
     }
 
-    /// The spheres the kernels test for `scene` (none without `SphereContact`), at least one
-    /// element so that the buffer is never empty (`GpuSimParams::sphere_count` says how many
+    /// The colliders the kernels test for `scene` (none without `Contact`), at least one
+    /// element so that the buffer is never empty (`GpuSimParams::collider_count` says how many
     /// are real).
     pub fn of_scene(scene: &Scene) -> Vec<Self> {
-        let mut spheres: Vec<Self> = SceneQuantities::of(scene).spheres.iter().map(Self::from_spec).collect();
-        if spheres.is_empty() {
-            spheres.push(Self::default());
+        let mut colliders: Vec<Self> = SceneQuantities::of(scene).colliders.iter().map(Self::from_spec).collect();
+        if colliders.is_empty() {
+            colliders.push(Self::default());
         }
-        spheres
+        colliders
     }
 }

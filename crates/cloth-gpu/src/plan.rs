@@ -3,12 +3,13 @@
 //! device allows. Written once: a backend creates the objects listed here, in order, and records
 //! the dispatches the schedule gives.
 
+use cloth_core::colliders::ColliderKind;
 use cloth_core::coloring::COLOR_COUNT;
 use cloth_core::integrator::XPBD_ITERATIONS;
 use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
-use crate::layout::{COLOR_RANGE_STRIDE, GpuColorRange, GpuConstraint, GpuSimParams, GpuSphere};
+use crate::layout::{COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSimParams};
 use crate::schedule::{PackedPasses, Pass, Schedule, TiledPass};
 use crate::tuning::{GpuTuning, invalid};
 
@@ -90,11 +91,13 @@ pub struct KernelDesc {
 pub enum Constant {
     /// An effect, compiled in (1) or out (0).
     Effect(Effect),
+    /// A collider kind, compiled in (1: some collider of the scene has it) or out (0).
+    Collider(ColliderKind),
     /// Invocations per workgroup.
     WorkgroupSize,
     /// `cloth_step`'s integration stage (0 Euler, 1-2 Verlet, 3-6 RK4).
     Stage,
-    /// XPBD's pass (0 predict, 1 a colour, 2 the spheres, 3 finish).
+    /// XPBD's pass (0 predict, 1 a colour, 2 the colliders, 3 finish).
     XpbdPass,
     /// Vertices along `i` of a block, 0 for rows.
     BlockWidth,
@@ -116,12 +119,14 @@ pub enum Constant {
 
 impl Constant {
     /// The constant's name in the shaders and its GLSL `constant_id` (the effects `0..` in
-    /// `Effect::ALL` order, the others from 100).
+    /// `Effect::ALL` order, the collider kinds from [`COLLIDER_CONSTANT_IDS`], the others from
+    /// 100).
     fn declared(self) -> (&'static str, u32) {
         match self {
             Constant::Effect(e) => {
                 (e.shader_constant_name(), Effect::ALL.iter().position(|x| *x == e).unwrap_or(0) as u32)
             }
+            Constant::Collider(k) => (k.shader_constant_name(), COLLIDER_CONSTANT_IDS + k.code()),
             Constant::WorkgroupSize => ("WORKGROUP_SIZE", 100),
             Constant::Stage => ("STAGE", 101),
             Constant::XpbdPass => ("XPBD_PASS", 101),
@@ -134,6 +139,12 @@ impl Constant {
             Constant::PackedOut => ("PACKED_OUT", 109),
             Constant::ReversedOrder => ("REVERSED_ORDER", 110),
         }
+    }
+
+    /// Whether the shaders declare it as a boolean (an effect or a collider kind; the others are
+    /// unsigned integers).
+    pub fn is_boolean(self) -> bool {
+        matches!(self, Constant::Effect(_) | Constant::Collider(_))
     }
 
     /// The constant's name in the shaders.
@@ -153,7 +164,18 @@ impl Constant {
     }
 }
 
-/// A pipeline: a kernel with its constants (the scene's effects and the workgroup size first).
+/// GLSL `constant_id` of the first collider kind's constant (`COLLIDER_SPHERE`; the others follow
+/// in `ColliderKind::ALL` order).
+pub const COLLIDER_CONSTANT_IDS: u32 = 20;
+
+/// Whether the kernels built for `scene` evaluate collider kind `kind`: with `Contact`, when a
+/// collider of the scene has it.
+pub fn has_collider_kind(scene: &Scene, kind: ColliderKind) -> bool {
+    scene.effects.contains(Effect::Contact) && scene.colliders.iter().any(|c| c.kind() == kind)
+}
+
+/// A pipeline: a kernel with its constants (the scene's effects, its collider kinds and the
+/// workgroup size first).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PipelineDesc {
     /// The kernel.
@@ -181,8 +203,8 @@ pub struct BindGroupDesc {
 pub struct StateBuffers {
     /// [`GpuSimParams`].
     pub params: BufferId,
-    /// [`GpuSphere`]s.
-    pub spheres: BufferId,
+    /// [`GpuCollider`]s.
+    pub colliders: BufferId,
     /// Positions `vec4` (w 1 free, 0 pinned), m, ping-pong.
     pub positions: [BufferId; 2],
     /// Velocities `vec4` (w the state's time), m/s, ping-pong.
@@ -213,7 +235,7 @@ const WRITE: Binding = Binding::Storage { read_only: false };
 const PARAMS: Binding = Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false };
 const COLOR_RANGE: Binding = Binding::Uniform { size: size_of::<GpuColorRange>() as u64, dynamic: true };
 
-/// The bindings 0-6 of both force kernels: the parameters, the spheres, positions and velocities
+/// The bindings 0-6 of both force kernels: the parameters, the colliders, positions and velocities
 /// in, positions and velocities out, the deepest penetration.
 const STATE_BINDINGS: [Binding; 7] = [PARAMS, READ, READ, READ, WRITE, WRITE, WRITE];
 
@@ -221,7 +243,7 @@ const STATE_BINDINGS: [Binding; 7] = [PARAMS, READ, READ, READ, WRITE, WRITE, WR
 /// same out, the pin bits.
 const STEP_EXTRA_BINDINGS: [Binding; 6] = [WRITE, READ, READ, WRITE, WRITE, READ];
 
-/// `xpbd`'s bindings: parameters, spheres, constraints, positions and velocities in, positions
+/// `xpbd`'s bindings: parameters, colliders, constraints, positions and velocities in, positions
 /// and velocities out, the deepest penetration, the multipliers, the normal corrections, and the
 /// colour range (a block of the colour-range buffer, chosen by a dynamic offset).
 const XPBD_BINDINGS: [Binding; 11] = [PARAMS, READ, READ, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, COLOR_RANGE];
@@ -255,6 +277,9 @@ impl Builder<'_> {
     fn pipeline(&mut self, kernel: KernelId, label: &str, own: &[(Constant, u32)]) -> PipelineId {
         let mut constants: Vec<(Constant, u32)> =
             Effect::ALL.iter().map(|&e| (Constant::Effect(e), u32::from(self.scene.effects.contains(e)))).collect();
+        constants.extend(
+            ColliderKind::ALL.iter().map(|&k| (Constant::Collider(k), u32::from(has_collider_kind(self.scene, k)))),
+        );
         if !matches!(self.plan.kernels[kernel].shader, Shader::Tiled(_)) {
             constants.push((Constant::WorkgroupSize, self.tuning.workgroup_size));
         }
@@ -301,7 +326,7 @@ impl Plan {
         let (storage, drawable) = (BufferUsage::Storage, BufferUsage::StorageDrawable);
         let state = StateBuffers {
             params: b.filled("params", BufferUsage::Uniform, bytemuck::bytes_of(&GpuSimParams::of(scene))),
-            spheres: b.filled("spheres", storage, bytemuck::cast_slice(&GpuSphere::of_scene(scene))),
+            colliders: b.filled("colliders", storage, bytemuck::cast_slice(&GpuCollider::of_scene(scene))),
             positions: NAME.map(|n| b.filled(&format!("positions {n}"), drawable, bytemuck::cast_slice(&positions))),
             velocities: NAME.map(|n| b.filled(&format!("velocities {n}"), storage, bytemuck::cast_slice(&velocities))),
             max_penetration: b.buffer("max penetration", storage, 4, None),
@@ -354,7 +379,7 @@ fn force_based(
     let kernel = b.kernel(Shader::Step, &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS].concat());
     let blocks = BlockGrid::new(tuning, nx, ny, limits.max_workgroups_per_dimension);
     let w = blocks.width;
-    let common = [s.params, s.spheres];
+    let common = [s.params, s.colliders];
     let group = |b: &mut Builder, label: String, [x_in, v_in, x_out, v_out]: [BufferId; 4], packed: [BufferId; 5]| {
         let buffers = [&common[..], &[x_in, v_in, x_out, v_out, s.max_penetration, rk4_scratch], &packed[..]].concat();
         b.group(kernel, label, buffers)
@@ -379,7 +404,7 @@ fn force_based(
                 ];
                 let pipeline = b.pipeline(tiled, "tiled Euler substeps", &constants);
                 let groups = [0, 1].map(|k| {
-                    let buffers = vec![s.params, s.spheres, p[k], v[k], p[1 - k], v[1 - k], s.max_penetration];
+                    let buffers = vec![s.params, s.colliders, p[k], v[k], p[1 - k], v[1 - k], s.max_penetration];
                     b.group(tiled, format!("tiled substeps {} -> {}", NAME[k], NAME[1 - k]), buffers)
                 });
                 let workgroups = tile.workgroups(nx, ny);
@@ -488,7 +513,7 @@ fn packed(
 }
 
 /// XPBD (`xpbd`): predict; per iteration one dispatch per non-empty colour and one for the
-/// spheres; finish.
+/// colliders; finish.
 fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule {
     let (scene, storage) = (b.scene, BufferUsage::Storage);
     let colors = model.spring_colors();
@@ -518,11 +543,11 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
     let s = b.plan.state;
     let groups = [0, 1].map(|k| {
         let (p, v) = (s.positions, s.velocities);
-        let buffers = vec![s.params, s.spheres, constraint_buffer, p[k], v[k], p[1 - k], v[1 - k]];
+        let buffers = vec![s.params, s.colliders, constraint_buffer, p[k], v[k], p[1 - k], v[1 - k]];
         let buffers = [buffers, vec![s.max_penetration, lambdas, corrections, range_buffer]].concat();
         b.group(kernel, format!("XPBD {} -> {}", NAME[k], NAME[1 - k]), buffers)
     });
-    let pipelines = ["predict", "project one colour", "project the spheres", "finish"]
+    let pipelines = ["predict", "project one colour", "project the colliders", "finish"]
         .iter()
         .enumerate()
         .map(|(pass, what)| b.pipeline(kernel, &format!("XPBD {what}"), &[(Constant::XpbdPass, pass as u32)]))
@@ -536,7 +561,7 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
         dynamic_offset: Some(offset),
     };
     let mut substep = vec![pass(0, vertices, 0)];
-    let contact = scene.effects.contains(Effect::SphereContact) && !scene.spheres.is_empty();
+    let contact = scene.effects.contains(Effect::Contact) && !scene.colliders.is_empty();
     for iteration in 0..XPBD_ITERATIONS {
         for color in 0..COLOR_COUNT {
             let count = range(color, iteration).count;

@@ -5,7 +5,7 @@
 //! | semi-implicit Euler | 1 (`cloth_step`, `STAGE = 0`): on the packed state inside a submission, or fused by the tiled kernel |
 //! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
 //! | RK4 | 4: `STAGE = 3..=6`, one per stage |
-//! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the spheres); finish |
+//! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the colliders); finish |
 //!
 //! Every substep reads the state buffer `k` that is current and leaves the new state in buffer
 //! `1 − k`; each pass has a bind group per `k`.

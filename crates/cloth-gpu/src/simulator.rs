@@ -5,7 +5,7 @@
 use cloth_core::{AdvanceCounts, ClothState, Diagnostics, Scene, SimError, Simulator};
 
 use crate::geometry::DeviceLimits;
-use crate::layout::{GpuSimParams, GpuSphere};
+use crate::layout::{GpuCollider, GpuSimParams};
 use crate::plan::{BindGroupDesc, BufferDesc, KernelDesc, PipelineDesc, Plan, StateBuffers};
 use crate::schedule::{Dispatch, Schedule};
 use crate::tuning::GpuTuning;
@@ -252,9 +252,9 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
             return Err(SimError::RebuildRequired { what });
         }
         scene.validate()?;
-        let (params, spheres) = (&self.buffers[self.state.params], &self.buffers[self.state.spheres]);
+        let (params, colliders) = (&self.buffers[self.state.params], &self.buffers[self.state.colliders]);
         self.backend.write(params, bytemuck::bytes_of(&GpuSimParams::of(scene)))?;
-        self.backend.write(spheres, bytemuck::cast_slice(&GpuSphere::of_scene(scene)))?;
+        self.backend.write(colliders, bytemuck::cast_slice(&GpuCollider::of_scene(scene)))?;
         self.scene = scene.clone();
         Ok(())
     }
@@ -270,7 +270,7 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
         cloth_core::simulator::check_state_size(self.free.len(), state)?;
         let positions: Vec<[f32; 4]> =
             state.positions.iter().zip(&self.free).map(|(p, &w)| [p[0], p[1], p[2], w]).collect();
-        // w: the state's time, which moving pins, moving spheres and gusts read on the GPU.
+        // w: the state's time, which moving pins, moving colliders and gusts read on the GPU.
         let time = state.time_s as f32;
         let velocities: Vec<[f32; 4]> = state.velocities.iter().map(|v| [v[0], v[1], v[2], time]).collect();
         let k = self.current;

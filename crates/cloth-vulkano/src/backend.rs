@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use cloth_core::SimError;
-use cloth_gpu::plan::{BindGroupDesc, Binding, BufferDesc, BufferUsage, Constant, KernelDesc, PipelineDesc, Shader};
+use cloth_gpu::plan::{BindGroupDesc, Binding, BufferDesc, BufferUsage, KernelDesc, PipelineDesc, Shader};
 use cloth_gpu::simulator::TIMER_PAIRS;
 use cloth_gpu::{DeviceLimits, Frame, GpuBackend, GpuTuning};
 use vulkano::buffer::{Buffer, BufferCreateInfo, Subbuffer};
@@ -267,9 +267,10 @@ impl GpuBackend for VulkanoBackend {
     ) -> Result<Arc<ComputePipeline>, SimError> {
         let constants: Vec<(u32, SpecializationConstant)> = (desc.constants.iter())
             .map(|&(c, value)| {
-                let constant = match c {
-                    Constant::Effect(_) => SpecializationConstant::Bool(value != 0),
-                    _ => SpecializationConstant::U32(value),
+                let constant = if c.is_boolean() {
+                    SpecializationConstant::Bool(value != 0)
+                } else {
+                    SpecializationConstant::U32(value)
                 };
                 (c.spec_id(), constant)
             })

@@ -18,10 +18,12 @@ mod context;
 pub use backend::{WgpuBackend, WgpuKernel, WgpuSimulator};
 pub use context::{GpuContext, device_requirements, list_adapters};
 
-/// WGSL source of the force-based substep kernel: `layout.wgsl`, `common.wgsl` (effect
-/// constants and force model), `cloth_step.wgsl`.
+/// WGSL source of the force-based substep kernel: `layout.wgsl`, `colliders.wgsl` (the
+/// colliders' signed distances), `common.wgsl` (effect constants and force model),
+/// `cloth_step.wgsl`.
 pub const STEP_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/cloth_step.wgsl")
 );
@@ -30,6 +32,7 @@ pub const STEP_SHADER: &str = concat!(
 /// dispatch, without its tile's constants ([`tiled_shader_source`] prepends them).
 pub const TILED_STEP_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/cloth_step_tiled.wgsl")
 );
@@ -44,9 +47,10 @@ pub fn tiled_shader_source(tile: &cloth_gpu::TileConfig) -> String {
     )
 }
 
-/// WGSL source of the XPBD passes: `layout.wgsl`, `common.wgsl`, `xpbd.wgsl`.
+/// WGSL source of the XPBD passes: `layout.wgsl`, `colliders.wgsl`, `common.wgsl`, `xpbd.wgsl`.
 pub const XPBD_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/xpbd.wgsl")
 );

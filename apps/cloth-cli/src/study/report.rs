@@ -99,15 +99,15 @@ fn orders(study: &Study, backend: &str, integrator: Integrator) -> Vec<(f64, boo
         .collect()
 }
 
-fn has_spheres(scene: &cloth_core::Scene) -> bool {
-    scene.effects.contains(cloth_core::Effect::SphereContact) && !scene.spheres.is_empty()
+fn has_colliders(scene: &cloth_core::Scene) -> bool {
+    scene.effects.contains(cloth_core::Effect::Contact) && !scene.colliders.is_empty()
 }
 
 /// Dispatches of one XPBD substep of `scene` on the GPU backends (as their `passes.rs` plan them).
 fn xpbd_dispatches(scene: &cloth_core::Scene) -> u32 {
     let colors = cloth_core::ClothModel::new(scene).spring_colors();
     let non_empty = (0..cloth_core::coloring::COLOR_COUNT).filter(|&c| !colors.color(c).is_empty()).count() as u32;
-    2 + cloth_core::integrator::XPBD_ITERATIONS * (non_empty + u32::from(has_spheres(scene)))
+    2 + cloth_core::integrator::XPBD_ITERATIONS * (non_empty + u32::from(has_colliders(scene)))
 }
 
 pub fn markdown(study: &Study, files: &Files) -> String {
@@ -329,7 +329,7 @@ pub fn markdown(study: &Study, files: &Files) -> String {
          the pick on each backend for this scene.",
         iterations = cloth_core::integrator::XPBD_ITERATIONS,
         xpbd_dispatches = xpbd_dispatches(scene),
-        spheres = if has_spheres(scene) { " + one for the spheres" } else { "" },
+        spheres = if has_colliders(scene) { " + one for the spheres" } else { "" },
     );
 
     let _ = writeln!(md, "\n## Every run\n");

@@ -1,47 +1,95 @@
-//! Contact panel: spheres (centre, radius, k_c, c_f, damping, motion), contact and friction on/off.
+//! Contact panel: the colliders (each kind's shape, k_c, c_f, damping, motion), adding and
+//! removing them, which one shift-drag moves, and contact and friction on/off.
 
 use cloth_core::Effect;
+use cloth_core::colliders::{ColliderKind, ColliderSpec, Shape};
 use cloth_core::scene::SphereSpec;
 use eframe::egui;
 
 use super::{PanelContext, motion, problems_for, quantity, vector};
 
-pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
-    for (effect, label) in [(Effect::SphereContact, "sphere contact"), (Effect::Friction, "friction")] {
+/// A new collider of `kind`, placed under the cloth's start.
+fn new_collider(kind: ColliderKind, cloth_center: [f64; 3]) -> ColliderSpec {
+    let [x, y, z] = cloth_center;
+    let below = [x, y - 0.8, z];
+    let shape = match kind {
+        ColliderKind::Sphere => return SphereSpec { center: below, ..Default::default() }.into(),
+        ColliderKind::Plane => Shape::Plane { normal: [0.0, 1.0, 0.0], offset: 0.0 },
+        ColliderKind::Capsule => Shape::Capsule { a: [x - 0.6, y - 0.8, z], b: [x + 0.6, y - 0.8, z], radius: 0.15 },
+        ColliderKind::Box => Shape::Box {
+            center: below,
+            half_extents: [0.5, 0.25, 0.5],
+            axis: [0.0, 1.0, 0.0],
+            angle: 0.0,
+            rounding: 0.0,
+        },
+    };
+    ColliderSpec::of(shape)
+}
+
+pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>, dragged: &mut usize) {
+    for (effect, label) in [(Effect::Contact, "contact"), (Effect::Friction, "friction")] {
         let mut on = ctx.scene.effects.contains(effect);
         if ui.checkbox(&mut on, format!("{label} (on/off rebuilds)")).changed() {
             ctx.scene.effects.set(effect, on);
         }
     }
     problems_for(ui, ctx.problems, "effects");
-    let moving = ctx.scene.effects.contains(Effect::MovingSpheres);
+    let moving = ctx.scene.effects.contains(Effect::MovingColliders);
     let mut remove = None;
-    for (k, sphere) in ctx.scene.spheres.iter_mut().enumerate() {
+    for (k, collider) in ctx.scene.colliders.iter_mut().enumerate() {
         ui.separator();
         ui.horizontal(|ui| {
-            ui.strong(format!("Sphere {k}"));
-            if ui.small_button("remove").clicked() {
+            ui.strong(format!("Collider {k}: {}", collider.kind().name()));
+            ui.radio_value(dragged, k, "shift-drag moves it");
+            if ui.small_button("remove (rebuilds)").clicked() {
                 remove = Some(k);
             }
         });
-        vector(ui, "centre", &mut sphere.center, "m", 0.01);
-        quantity(ui, "radius", &mut sphere.radius, "m", 0.005);
-        quantity(ui, "contact stiffness k_c", &mut sphere.stiffness, "N/m", 10.0);
-        quantity(ui, "friction c_f", &mut sphere.friction, "", 0.01);
-        quantity(ui, "contact damping", &mut sphere.damping, "N·s/m", 0.01);
-        if moving {
-            motion(ui, "motion from the centre", &mut sphere.motion);
+        match &mut collider.shape {
+            Shape::Sphere { center, radius } => {
+                vector(ui, "centre", center, "m", 0.01);
+                quantity(ui, "radius", radius, "m", 0.005);
+            }
+            Shape::Plane { normal, offset } => {
+                vector(ui, "normal (outward)", normal, "", 0.01);
+                quantity(ui, "offset along the normal", offset, "m", 0.01);
+            }
+            Shape::Capsule { a, b, radius } => {
+                vector(ui, "end a", a, "m", 0.01);
+                vector(ui, "end b", b, "m", 0.01);
+                quantity(ui, "radius", radius, "m", 0.005);
+            }
+            Shape::Box { center, half_extents, axis, angle, rounding } => {
+                vector(ui, "centre", center, "m", 0.01);
+                vector(ui, "half extents", half_extents, "m", 0.01);
+                vector(ui, "rotation axis", axis, "", 0.01);
+                quantity(ui, "rotation angle", angle, "°", 0.5);
+                quantity(ui, "edge rounding", rounding, "m", 0.005);
+            }
         }
-        problems_for(ui, ctx.problems, &format!("spheres[{k}]"));
+        quantity(ui, "contact stiffness k_c", &mut collider.stiffness, "N/m", 10.0);
+        quantity(ui, "friction c_f", &mut collider.friction, "", 0.01);
+        quantity(ui, "contact damping", &mut collider.damping, "N·s/m", 0.01);
+        if moving {
+            motion(ui, "motion from the start", &mut collider.motion);
+        }
+        problems_for(ui, ctx.problems, &format!("colliders[{k}]"));
     }
     if let Some(k) = remove {
-        ctx.scene.spheres.remove(k);
+        ctx.scene.colliders.remove(k);
     }
-    if ui.button("Add a sphere (rebuilds)").clicked() {
-        ctx.scene.spheres.push(SphereSpec::default());
-    }
-    ui.label(egui::RichText::new("Shift-drag in the view moves sphere 0.").weak());
+    *dragged = (*dragged).min(ctx.scene.colliders.len().saturating_sub(1));
+    ui.horizontal_wrapped(|ui| {
+        ui.label("Add (rebuilds):");
+        for kind in ColliderKind::ALL {
+            if ui.button(kind.name()).clicked() {
+                ctx.scene.colliders.push(new_collider(kind, ctx.scene.cloth.center));
+            }
+        }
+    });
+    ui.label(egui::RichText::new("Shift-drag in the view moves the chosen collider.").weak());
     if !moving {
-        ui.label(egui::RichText::new("Turn on MovingSpheres (Effects) to animate a sphere.").weak());
+        ui.label(egui::RichText::new("Turn on MovingColliders (Effects) to animate a collider.").weak());
     }
 }

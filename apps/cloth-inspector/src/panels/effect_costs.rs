@@ -35,11 +35,11 @@ impl EffectCostsPanel {
     /// Starts measuring `scene` on `backend` in the background.
     pub fn start(&mut self, scene: &Scene, backend: &str, tuning: &cloth_gpu::GpuTuning) {
         // Every row's warm-up frame and timings, within the backend's work budget, or not at all.
-        let rows = effect_cost::steps(scene).len() as u32;
+        let steps = effect_cost::steps(scene);
+        let rows = steps.len() as u32;
         let frames = (FRAMES * REPEATS + 1).saturating_mul(rows);
-        if let Err(p) = cloth_core::budget::WorkBudget::for_backend(backend)
-            .check(&effect_cost::row_scene(scene, scene.effects), frames)
-        {
+        let whole = steps.last().map(|step| effect_cost::row_scene(scene, step)).unwrap_or_else(|| scene.clone());
+        if let Err(p) = cloth_core::budget::WorkBudget::for_backend(backend).check(&whole, frames) {
             self.message = Some(format!(
                 "not measured: {rows} rows of {} frames each on {backend} are too much work ({}); use a smaller grid \
                  or fewer substeps",

@@ -1,0 +1,92 @@
+// The colliders' signed distances: the GLSL twin of crates/cloth-core/src/colliders.rs and
+// shaders/wgsl/colliders.wgsl (same names, same order of operations). Each kind's surface seen
+// from a point x: its signed distance φ (m, negative inside) and outward unit normal. A kind no
+// collider of the scene has is compiled out (the COLLIDER_* specialization constants of
+// effects.glsl).
+
+struct Surface {
+    float distance;
+    vec3 normal;
+};
+
+// φ = |x − c| − r, n = (x − c)/|x − c| (+Y at the centre).
+Surface sphere_surface(vec3 x, vec3 center, float radius) {
+    vec3 offset = x - center;
+    float distance = sqrt(dot(offset, offset));
+    vec3 normal = vec3(0.0, 1.0, 0.0);
+    if (distance > 0.0) {
+        normal = offset * (1.0 / distance);
+    }
+    return Surface(distance - radius, normal);
+}
+
+// φ = n·(x − p), p a point of the plane.
+Surface plane_surface(vec3 x, vec3 point_, vec3 normal) {
+    return Surface(dot(x - point_, normal), normal);
+}
+
+// φ = |x − p| − r, p the nearest point of the axis c ± e a.
+Surface capsule_surface(vec3 x, vec3 center, vec3 axis, float half_length, float radius, vec3 fallback) {
+    float along = min(max(dot(x - center, axis), -half_length), half_length);
+    vec3 offset = x - (center + axis * along);
+    float distance = sqrt(dot(offset, offset));
+    vec3 normal = fallback;
+    if (distance > 0.0) {
+        normal = offset * (1.0 / distance);
+    }
+    return Surface(distance - radius, normal);
+}
+
+float sign_of(float v) {
+    return v < 0.0 ? -1.0 : 1.0;
+}
+
+// A rounded box: p = Rᵀ(x − c), q = |p| − e, φ = |max(q, 0)| + min(max_k q_k, 0) − ρ.
+Surface box_surface(vec3 x, Collider c, vec3 center) {
+    vec3 d = x - center;
+    vec3 p = vec3(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
+    vec3 q = vec3(abs(p.x) - c.extent.x, abs(p.y) - c.extent.y, abs(p.z) - c.extent.z);
+    vec3 outside = vec3(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
+    float outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
+    if (outside_length > 0.0) {
+        float scale = 1.0 / outside_length;
+        vec3 local_ = vec3(sign_of(p.x) * outside.x * scale, sign_of(p.y) * outside.y * scale,
+                           sign_of(p.z) * outside.z * scale);
+        vec3 normal = c.axis_x * local_.x + c.axis_y * local_.y + c.axis_z * local_.z;
+        return Surface(outside_length - c.radius, normal);
+    }
+    // Inside the core box: the nearest face is the axis of the largest q (ties to the first).
+    if (q.x >= q.y && q.x >= q.z) {
+        return Surface(q.x - c.radius, c.axis_x * sign_of(p.x));
+    }
+    if (q.y >= q.z) {
+        return Surface(q.y - c.radius, c.axis_y * sign_of(p.y));
+    }
+    return Surface(q.z - c.radius, c.axis_z * sign_of(p.z));
+}
+
+// The surface of collider c, its centre at `center`, seen from x.
+Surface collider_surface(Collider c, vec3 center, vec3 x) {
+    if (COLLIDER_SPHERE) {
+        if (c.kind == 0u) {
+            return sphere_surface(x, center, c.radius);
+        }
+    }
+    if (COLLIDER_PLANE) {
+        if (c.kind == 1u) {
+            return plane_surface(x, center, c.axis_y);
+        }
+    }
+    if (COLLIDER_CAPSULE) {
+        if (c.kind == 2u) {
+            return capsule_surface(x, center, c.axis_x, c.extent.x, c.radius, c.axis_y);
+        }
+    }
+    if (COLLIDER_BOX) {
+        if (c.kind == 3u) {
+            return box_surface(x, c, center);
+        }
+    }
+    // A kind compiled out is never in the buffer (the pipeline is built for the scene's kinds).
+    return Surface(3.0e38, vec3(0.0, 1.0, 0.0));
+}

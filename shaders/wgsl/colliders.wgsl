@@ -1,0 +1,101 @@
+// The colliders' signed distances (crates/cloth-core/src/colliders.rs, function by function and
+// operation by operation): each kind's surface seen from a point x, its signed distance φ (m,
+// negative inside) and outward unit normal. Prepended, after layout.wgsl, to every module that
+// meets colliders: the compute kernels and the inspector's render.wgsl.
+//
+// A kind no collider of the scene has is compiled out: each COLLIDER_* is a pipeline-overridable
+// constant (true when a collider of the scene has the kind), and the branch on a false one is
+// removed when the pipeline is built.
+
+override COLLIDER_SPHERE: bool = true;
+override COLLIDER_PLANE: bool = true;
+override COLLIDER_CAPSULE: bool = true;
+override COLLIDER_BOX: bool = true;
+
+struct Surface {
+    distance: f32,
+    normal: vec3<f32>,
+}
+
+// φ = |x − c| − r, n = (x − c)/|x − c| (+Y at the centre).
+fn sphere_surface(x: vec3<f32>, center: vec3<f32>, radius: f32) -> Surface {
+    let offset = x - center;
+    let distance = sqrt(dot(offset, offset));
+    var normal = vec3<f32>(0.0, 1.0, 0.0);
+    if (distance > 0.0) {
+        normal = offset * (1.0 / distance);
+    }
+    return Surface(distance - radius, normal);
+}
+
+// φ = n·(x − p), p a point of the plane.
+fn plane_surface(x: vec3<f32>, point: vec3<f32>, normal: vec3<f32>) -> Surface {
+    return Surface(dot(x - point, normal), normal);
+}
+
+// φ = |x − p| − r, p the nearest point of the axis c ± e a.
+fn capsule_surface(x: vec3<f32>, center: vec3<f32>, axis: vec3<f32>, half_length: f32, radius: f32,
+                   fallback: vec3<f32>) -> Surface {
+    let along = min(max(dot(x - center, axis), -half_length), half_length);
+    let offset = x - (center + axis * along);
+    let distance = sqrt(dot(offset, offset));
+    var normal = fallback;
+    if (distance > 0.0) {
+        normal = offset * (1.0 / distance);
+    }
+    return Surface(distance - radius, normal);
+}
+
+fn sign_of(v: f32) -> f32 {
+    return select(1.0, -1.0, v < 0.0);
+}
+
+// A rounded box: p = Rᵀ(x − c), q = |p| − e, φ = |max(q, 0)| + min(max_k q_k, 0) − ρ.
+fn box_surface(x: vec3<f32>, c: Collider, center: vec3<f32>) -> Surface {
+    let d = x - center;
+    let p = vec3<f32>(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
+    let q = vec3<f32>(abs(p.x) - c.extent.x, abs(p.y) - c.extent.y, abs(p.z) - c.extent.z);
+    let outside = vec3<f32>(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
+    let outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
+    if (outside_length > 0.0) {
+        let scale = 1.0 / outside_length;
+        let local = vec3<f32>(sign_of(p.x) * outside.x * scale, sign_of(p.y) * outside.y * scale,
+                              sign_of(p.z) * outside.z * scale);
+        let normal = c.axis_x * local.x + c.axis_y * local.y + c.axis_z * local.z;
+        return Surface(outside_length - c.radius, normal);
+    }
+    // Inside the core box: the nearest face is the axis of the largest q (ties to the first).
+    if (q.x >= q.y && q.x >= q.z) {
+        return Surface(q.x - c.radius, c.axis_x * sign_of(p.x));
+    }
+    if (q.y >= q.z) {
+        return Surface(q.y - c.radius, c.axis_y * sign_of(p.y));
+    }
+    return Surface(q.z - c.radius, c.axis_z * sign_of(p.z));
+}
+
+// The surface of collider c, its centre at `center`, seen from x.
+fn collider_surface(c: Collider, center: vec3<f32>, x: vec3<f32>) -> Surface {
+    if (COLLIDER_SPHERE) {
+        if (c.kind == 0u) {
+            return sphere_surface(x, center, c.radius);
+        }
+    }
+    if (COLLIDER_PLANE) {
+        if (c.kind == 1u) {
+            return plane_surface(x, center, c.axis_y);
+        }
+    }
+    if (COLLIDER_CAPSULE) {
+        if (c.kind == 2u) {
+            return capsule_surface(x, center, c.axis_x, c.extent.x, c.radius, c.axis_y);
+        }
+    }
+    if (COLLIDER_BOX) {
+        if (c.kind == 3u) {
+            return box_surface(x, c, center);
+        }
+    }
+    // A kind compiled out is never in the buffer (the pipeline is built for the scene's kinds).
+    return Surface(3.0e38, vec3<f32>(0.0, 1.0, 0.0));
+}
