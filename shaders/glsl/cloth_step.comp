@@ -18,6 +18,8 @@
 //      this last stage's state sticks (its tangential motion over the substep is undone)
 layout(constant_id = 101) const uint STAGE = 0u;
 
+// The binding of the mesh colliders' distance fields, which layout.glsl declares.
+#define DISTANCE_FIELDS_BINDING 13
 #include "layout.glsl"
 #include "forces.glsl"
 

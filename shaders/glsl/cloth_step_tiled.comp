@@ -20,6 +20,8 @@ layout(local_size_x = 32, local_size_y = 16, local_size_x_id = 102, local_size_y
 layout(constant_id = 104) const uint TILE_CELLS = 512u;      // TILE_WIDTH × TILE_HEIGHT
 layout(constant_id = 106) const uint FUSED_SUBSTEPS = 2u;    // substeps per dispatch
 
+// The binding of the mesh colliders' distance fields, which layout.glsl declares.
+#define DISTANCE_FIELDS_BINDING 7
 #include "layout.glsl"
 #include "forces.glsl"
 

@@ -2,7 +2,8 @@
 // shaders/wgsl/colliders.wgsl (same names, same order of operations). Each kind's surface seen
 // from a point x: its signed distance φ (m, negative inside) and outward unit normal. A kind no
 // collider of the scene has is compiled out (the COLLIDER_* specialization constants of
-// effects.glsl).
+// effects.glsl). Each kernel declares `distance_fields`, the mesh colliders' samples, at its own
+// binding.
 
 struct Surface {
     float distance;
@@ -65,6 +66,64 @@ Surface box_surface(vec3 x, Collider c, vec3 center) {
     return Surface(q.z - c.radius, c.axis_z * sign_of(p.z));
 }
 
+// A mesh's distance field, sample (i, j, k) (cloth_core::mesh::DistanceField).
+float field_sample(Collider c, uint i, uint j, uint k) {
+    return distance_fields[c.field_first + i + c.field_dims.x * (j + c.field_dims.y * k)];
+}
+
+// A mesh: trilinear in its distance field at p = Rᵀ(x − c), the normal the trilinear gradient
+// (outside the field's grid: the nearest grid point's φ plus the way there), rotated back.
+Surface mesh_surface(vec3 x, Collider c, vec3 center) {
+    vec3 d = x - center;
+    vec3 p = vec3(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
+    float cell = c.radius;
+    vec3 g = (p - c.extent) * (1.0 / cell);
+    vec3 high = vec3(float(c.field_dims.x - 1u), float(c.field_dims.y - 1u), float(c.field_dims.z - 1u));
+    vec3 q = vec3(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
+    uint i = min(uint(floor(q.x)), c.field_dims.x - 2u);
+    uint j = min(uint(floor(q.y)), c.field_dims.y - 2u);
+    uint k = min(uint(floor(q.z)), c.field_dims.z - 2u);
+    float fx = q.x - float(i);
+    float fy = q.y - float(j);
+    float fz = q.z - float(k);
+    float c000 = field_sample(c, i, j, k);
+    float c100 = field_sample(c, i + 1u, j, k);
+    float c010 = field_sample(c, i, j + 1u, k);
+    float c110 = field_sample(c, i + 1u, j + 1u, k);
+    float c001 = field_sample(c, i, j, k + 1u);
+    float c101 = field_sample(c, i + 1u, j, k + 1u);
+    float c011 = field_sample(c, i, j + 1u, k + 1u);
+    float c111 = field_sample(c, i + 1u, j + 1u, k + 1u);
+    float gx = 1.0 - fx;
+    float gy = 1.0 - fy;
+    float gz = 1.0 - fz;
+    float c00 = c000 * gx + c100 * fx;
+    float c10 = c010 * gx + c110 * fx;
+    float c01 = c001 * gx + c101 * fx;
+    float c11 = c011 * gx + c111 * fx;
+    float c0 = c00 * gy + c10 * fy;
+    float c1 = c01 * gy + c11 * fy;
+    float value = c0 * gz + c1 * fz;
+    vec3 outside = vec3(g.x - q.x, g.y - q.y, g.z - q.z) * cell;
+    float outside_length = sqrt(dot(outside, outside));
+    vec3 n = vec3(0.0, 1.0, 0.0);
+    float distance = value;
+    if (outside_length > 0.0) {
+        n = outside * (1.0 / outside_length);
+        distance = value + outside_length;
+    } else {
+        float dx = ((c100 - c000) * gy + (c110 - c010) * fy) * gz + ((c101 - c001) * gy + (c111 - c011) * fy) * fz;
+        float dy = ((c010 - c000) * gx + (c110 - c100) * fx) * gz + ((c011 - c001) * gx + (c111 - c101) * fx) * fz;
+        float dz = (c01 - c00) * gy + (c11 - c10) * fy;
+        vec3 gradient = vec3(dx, dy, dz);
+        float len = sqrt(dot(gradient, gradient));
+        if (len > 0.0) {
+            n = gradient * (1.0 / len);
+        }
+    }
+    return Surface(distance, c.axis_x * n.x + c.axis_y * n.y + c.axis_z * n.z);
+}
+
 // The surface of collider c, its centre at `center`, seen from x.
 Surface collider_surface(Collider c, vec3 center, vec3 x) {
     if (COLLIDER_SPHERE) {
@@ -85,6 +144,11 @@ Surface collider_surface(Collider c, vec3 center, vec3 x) {
     if (COLLIDER_BOX) {
         if (c.kind == 3u) {
             return box_surface(x, c, center);
+        }
+    }
+    if (COLLIDER_MESH) {
+        if (c.kind == 4u) {
+            return mesh_surface(x, c, center);
         }
     }
     // A kind compiled out is never in the buffer (the pipeline is built for the scene's kinds).

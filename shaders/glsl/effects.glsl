@@ -19,6 +19,7 @@ layout(constant_id = 20) const bool COLLIDER_SPHERE = true;
 layout(constant_id = 21) const bool COLLIDER_PLANE = true;
 layout(constant_id = 22) const bool COLLIDER_CAPSULE = true;
 layout(constant_id = 23) const bool COLLIDER_BOX = true;
+layout(constant_id = 24) const bool COLLIDER_MESH = true;
 // Any spring kind at all (a specialization-constant expression, so the branch on it is constant).
 #define ANY_SPRINGS (EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND)
 // local_size_x is the default; local_size_x_id makes it specializable (id 100). (A kernel whose

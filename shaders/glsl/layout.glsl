@@ -22,24 +22,28 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
 } params;
 
-// cloth_gpu::layout::GpuCollider (128 bytes): one collider of any kind.
+// cloth_gpu::layout::GpuCollider (144 bytes): one collider of any kind.
 struct Collider {
     vec3 center;        // m, at time 0 (a plane's point nearest the origin, a capsule's midpoint)
-    uint kind;          // 0 sphere, 1 plane, 2 capsule, 3 box
+    uint kind;          // 0 sphere, 1 plane, 2 capsule, 3 box, 4 mesh
     vec3 axis_x;        // a capsule's direction; a box's rotated x
-    float radius;       // m: sphere, capsule; a box's rounding
+    float radius;       // m: sphere, capsule; a box's rounding; a mesh's distance-field cell
     vec3 axis_y;        // a plane's normal; a box's rotated y
     float stiffness;    // k_c, N/m
     vec3 axis_z;        // a box's rotated z
     float friction;     // c_f
-    vec3 extent;        // m: a capsule's half length (x); a box's half extents less the rounding
+    vec3 extent;        // m: a capsule's half length (x); a box's half extents less the rounding; a mesh's field origin
     float damping;      // N·s/m
     vec3 velocity;      // steady velocity, m/s (MovingColliders)
     float omega;        // angular frequency of the oscillation, rad/s
     vec3 amplitude;     // amplitude of the oscillation, m
     float thickness;    // m: thinnest width (XPBD sweeps longer paths only)
-    vec3 pad;
+    uvec3 field_dims;   // a mesh's distance-field points along x, y, z
     float tolerance;    // m: within this of the surface a vertex is on it
+    uint field_first;   // a mesh's first sample in distance_fields
+    uint pad0;
+    uint pad1;
+    uint pad2;
 };
 
 // cloth_gpu::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.
@@ -50,7 +54,9 @@ struct Constraint {
     float rest_length;  // m
 };
 
-// The bindings every kernel shares: the parameters and the colliders.
+// The bindings every kernel shares: the parameters and the colliders, and the mesh colliders'
+// distance fields (m) at the binding the kernel names before including this file.
 layout(set = 0, binding = 1, std430) readonly buffer Colliders { Collider colliders[]; };
+layout(set = 0, binding = DISTANCE_FIELDS_BINDING, std430) readonly buffer DistanceFields { float distance_fields[]; };
 
 #include "colliders.glsl"

@@ -19,6 +19,8 @@
 // Which pass this pipeline runs (see above).
 layout(constant_id = 101) const uint XPBD_PASS = 0u;
 
+// The binding of the mesh colliders' distance fields, which layout.glsl declares.
+#define DISTANCE_FIELDS_BINDING 11
 #include "layout.glsl"
 #include "forces.glsl"
 

@@ -39,6 +39,8 @@ override STAGE: u32 = 0u;
 @group(0) @binding(10) var<storage, read_write> packed_xv_out: array<vec4<f32>>;
 @group(0) @binding(11) var<storage, read_write> packed_v_out: array<vec2<f32>>;
 @group(0) @binding(12) var<storage, read> pin_bits: array<u32>;
+// The mesh colliders' distance fields (colliders.wgsl), m.
+@group(0) @binding(13) var<storage, read> distance_fields: array<f32>;
 // 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
 override PACKED_IN: u32 = 0u;
 override PACKED_OUT: u32 = 0u;

@@ -20,6 +20,8 @@ const HALO: u32 = 2u * FUSED_SUBSTEPS;
 @group(0) @binding(4) var<storage, read_write> positions_out: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> velocities_out: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> max_penetration_bits: atomic<u32>;
+// The mesh colliders' distance fields (colliders.wgsl), m.
+@group(0) @binding(7) var<storage, read> distance_fields: array<f32>;
 
 // common.wgsl's grid_normal reads positions through this (this kernel computes its normals from
 // the tile instead, below).

@@ -22,24 +22,28 @@ struct SimParams {
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
 }
 
-// cloth_gpu::layout::GpuCollider (128 bytes): one collider of any kind.
+// cloth_gpu::layout::GpuCollider (144 bytes): one collider of any kind.
 struct Collider {
     center: vec3<f32>,       // m, at time 0 (a plane's point nearest the origin, a capsule's midpoint)
-    kind: u32,               // 0 sphere, 1 plane, 2 capsule, 3 box
+    kind: u32,               // 0 sphere, 1 plane, 2 capsule, 3 box, 4 mesh
     axis_x: vec3<f32>,       // a capsule's direction; a box's rotated x
-    radius: f32,             // m: sphere, capsule; a box's rounding
+    radius: f32,             // m: sphere, capsule; a box's rounding; a mesh's distance-field cell
     axis_y: vec3<f32>,       // a plane's normal; a box's rotated y
     stiffness: f32,          // k_c, N/m
     axis_z: vec3<f32>,       // a box's rotated z
     friction: f32,           // c_f
-    extent: vec3<f32>,       // m: a capsule's half length (x); a box's half extents less the rounding
+    extent: vec3<f32>,       // m: a capsule's half length (x); a box's half extents less the rounding; a mesh's field origin
     damping: f32,            // N·s/m
     velocity: vec3<f32>,     // steady velocity, m/s (MovingColliders)
     omega: f32,              // angular frequency of the oscillation, rad/s
     amplitude: vec3<f32>,    // amplitude of the oscillation, m
     thickness: f32,          // m: thinnest width (XPBD sweeps longer paths only)
-    pad: vec3<f32>,
+    field_dims: vec3<u32>,   // a mesh's distance-field points along x, y, z
     tolerance: f32,          // m: within this of the surface a vertex is on it
+    field_first: u32,        // a mesh's first sample in distance_fields
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // cloth_gpu::layout::GpuConstraint (16 bytes): one spring as an XPBD constraint, a < b.

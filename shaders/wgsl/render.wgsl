@@ -29,6 +29,7 @@ struct ClothInfo {
 @group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> velocities: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> colliders: array<Collider>;   // at the drawn state's time
+@group(0) @binding(6) var<storage, read> distance_fields: array<f32>;  // the mesh colliders' (colliders.wgsl)
 // cs_vertex_colors only: each vertex's colour, what vs_cloth draws it with.
 @group(0) @binding(5) var<storage, read_write> vertex_colors: array<vec4<f32>>;
 

@@ -38,6 +38,8 @@ fn position_in(index: u32) -> vec3<f32> {
 @group(0) @binding(9) var<storage, read_write> normal_corrections: array<f32>;
 // The colour pass 1 projects (selected by a dynamic offset).
 @group(0) @binding(10) var<uniform> color: ColorRange;
+// The mesh colliders' distance fields (colliders.wgsl), m.
+@group(0) @binding(11) var<storage, read> distance_fields: array<f32>;
 
 struct SpringProjection {
     x_a: vec3<f32>,

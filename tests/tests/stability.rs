@@ -532,6 +532,22 @@ fn cloth_falls_across_a_capsule(backend: &Backend) {
     });
 }
 
+/// `scenes/mesh.ron` at 16 × 16 for 1.5 s: the cloth falls onto a ring, a triangle mesh sampled as
+/// a distance field, no deeper than 10% of the spacing inside anything; at the end it rests on the
+/// ring (its highest vertex within 5 cm of the ring's top, 0.3 m) and sags into its hole.
+fn cloth_falls_onto_a_mesh(backend: &Backend) {
+    let scene = sized(cloth_conformance::scene("mesh.ron"), 16, 90);
+    let top = 0.3;
+    every_integrator(backend, &scene, 0.1, 0.2, |outcome| {
+        let last = outcome.last();
+        let highest = last.positions.iter().map(|p| p[1] as f64).fold(f64::MIN, f64::max);
+        let c = last.centroid();
+        eprintln!("{}: highest vertex at {highest:.3} m (ring top {top} m), centroid {c:.3?}", outcome.name);
+        assert!((highest - top).abs() < 0.05, "{}: the cloth does not rest on the ring", outcome.name);
+        assert!(c[1] > 0.0 && c[1] < top, "{}: the cloth does not drape (centroid {c:?})", outcome.name);
+    });
+}
+
 /// `scenes/heap.ron` at 32 × 32 (from this size up a wave of its starting ripple spans enough
 /// vertices for the folds to cross), 1.5 s: without self-collision the cloth passes through
 /// itself, and the counter sees it: more than 0 edge–triangle crossings in some frame (counted
@@ -595,6 +611,7 @@ stability_suite! {
         floor_at_10_m_s_does_not_tunnel,
         tilted_table_holds_with_friction_and_slides_without,
         cloth_falls_across_a_capsule,
+        cloth_falls_onto_a_mesh,
         heap_passes_through_itself_without_self_collision,
     ]
 }

@@ -323,7 +323,13 @@ fn effect_costs_are_medians_with_a_verdict_on_the_noise() {
     let scene = cloth_core::Scene::from_ron_str(include_str!("../../../scenes/flag.ron")).unwrap();
     let rows: Vec<Vec<&str>> =
         table.lines().skip(1).map(|r| r.split_once("\",").expect("a quoted adapter").1.split(',').collect()).collect();
-    assert_eq!(rows.len(), 1 + scene.effects.iter().count(), "{table}");
+    // The bare row, one per effect, and one per collider kind after the first (Contact's).
+    let kinds: std::collections::BTreeSet<_> = scene.colliders.iter().map(|c| c.kind()).collect();
+    assert_eq!(rows.len(), 1 + scene.effects.iter().count() + kinds.len() - 1, "{table}");
+    let labels: Vec<&str> = rows.iter().map(|r| r[at("row")]).collect();
+    for row in ["+ Contact (sphere)", "+ plane colliders", "+ capsule colliders", "+ box colliders"] {
+        assert!(labels.contains(&row), "no row {row}: {labels:?}");
+    }
     for (k, r) in rows.iter().enumerate() {
         assert_eq!(r[at("repeats")], "3", "{r:?}");
         let (verdict, added, low, high) =

@@ -82,13 +82,43 @@ impl ClothInfo {
 /// The colliders as the view's shaders read them: every collider of the scene, where it is at
 /// time `t_s` (s).
 pub fn colliders_at(scene: &Scene, t_s: f64) -> Vec<GpuCollider> {
+    let mut first = 0;
     (scene.colliders.iter().enumerate())
         .map(|(i, c)| {
             let g = GpuCollider::from_spec(c);
             let d = scene.collider_offset_at(i, t_s);
-            GpuCollider { center: [0, 1, 2].map(|k| (f64::from(g.center[k]) + d[k]) as f32), ..g }
+            let field_first = first;
+            first += g.field_dims.iter().product::<u32>();
+            GpuCollider { center: [0, 1, 2].map(|k| (f64::from(g.center[k]) + d[k]) as f32), field_first, ..g }
         })
         .collect()
+}
+
+/// What the view's distance-field buffer holds: each mesh collider's file, scale and cells.
+type FieldSources = Vec<(String, u64, u32)>;
+
+fn field_sources(scene: &Scene) -> FieldSources {
+    (scene.colliders.iter())
+        .filter_map(|c| match &c.shape {
+            cloth_core::colliders::Shape::Mesh { file, scale, cells, .. } => {
+                Some((file.clone(), scale.to_bits(), *cells))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// The samples of the scene's mesh colliders' distance fields, in the order of its colliders
+/// (what `colliders_at`'s `field_first` indexes); at least one value.
+fn distance_fields_at(scene: &Scene) -> Vec<f32> {
+    let mut samples: Vec<f32> = (scene.colliders.iter())
+        .filter_map(|c| c.shape.distance_field().and_then(Result::ok))
+        .flat_map(|f| f.samples.clone())
+        .collect();
+    if samples.is_empty() {
+        samples.push(0.0);
+    }
+    samples
 }
 
 /// Half the side of the square a plane is drawn as, m.
@@ -118,6 +148,20 @@ fn collider_mesh(scene: &Scene, t_s: f64) -> (Vec<MeshVertex>, Vec<u32>) {
                 vertices.push(MeshVertex { position: to_f32(corner - n * 0.002), normal: to_f32(n) });
             }
             indices.extend([0, 2, 1, 0, 3, 2].map(|k| first + k));
+            continue;
+        }
+        if let Some(field) = &c.field {
+            // A mesh is drawn as its triangles, flat-shaded, rotated and moved.
+            let world = |v: [f64; 3]| center + c.axes[0] * v[0] + c.axes[1] * v[1] + c.axes[2] * v[2];
+            for t in &field.mesh.triangles {
+                let [a, b, d] = t.map(|i| world(field.mesh.vertices[i as usize]));
+                let n = (b - a).cross(d - a);
+                let n = n * (1.0 / n.length().max(f64::MIN_POSITIVE));
+                for p in [a, b, d] {
+                    vertices.push(MeshVertex { position: to_f32(p), normal: to_f32(n) });
+                }
+            }
+            indices.extend(first..vertices.len() as u32);
             continue;
         }
         let Some((low, high)) = spec.shape.bounds() else { continue };
@@ -223,6 +267,8 @@ pub struct ViewRenderer {
     cloth_info: wgpu::Buffer,
     /// The colliders, grown to hold every collider of the scene.
     colliders: wgpu::Buffer,
+    /// The mesh colliders' distance fields, and what they were built from.
+    distance_fields: (wgpu::Buffer, FieldSources),
     sphere_mesh: (wgpu::Buffer, wgpu::Buffer, u32),
     ground: (wgpu::Buffer, u32),
     mesh: Option<Mesh>,
@@ -295,7 +341,7 @@ impl ViewRenderer {
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("view bind group layout"),
-            entries: &[uniform(0), uniform(1), storage(2), storage(3), storage(4)],
+            entries: &[uniform(0), uniform(1), storage(2), storage(3), storage(4), storage(6)],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("view pipeline layout"),
@@ -445,6 +491,7 @@ impl ViewRenderer {
                 size_of::<GpuCollider>() as u64,
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             ),
+            distance_fields: (buffer("view distance fields", 4, wgpu::BufferUsages::STORAGE), Vec::new()),
             sphere_mesh,
             ground,
             mesh: None,
@@ -579,6 +626,16 @@ impl ViewRenderer {
         if !colliders.is_empty() {
             queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&colliders));
         }
+        let sources = field_sources(scene);
+        if sources != self.distance_fields.1 {
+            let samples = distance_fields_at(scene);
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("view distance fields"),
+                contents: bytemuck::cast_slice(&samples),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            self.distance_fields = (buffer, sources);
+        }
         let (collider_vertices, collider_indices) = collider_mesh(scene, inputs.time_s);
         let collider_buffers = (!collider_indices.is_empty()).then(|| {
             let init = |label: &str, contents: &[u8], usage| {
@@ -627,6 +684,7 @@ impl ViewRenderer {
                 wgpu::BindGroupEntry { binding: 2, resource: positions.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 3, resource: velocities.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: self.colliders.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: self.distance_fields.0.as_entire_binding() },
             ],
         });
         let crossed = (!inputs.crossed_triangles.is_empty()).then(|| {
@@ -847,6 +905,7 @@ mod tests {
             (2, init("positions", bytemuck::cast_slice(&p), storage)),
             (3, init("velocities", bytemuck::cast_slice(&v), storage)),
             (4, init("colliders", bytemuck::cast_slice(colliders), storage)),
+            (6, init("distance fields", bytemuck::cast_slice(&distance_fields_at(scene)), storage)),
         ];
         let mut entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()

@@ -12,14 +12,18 @@
 //! | ground plane | `Plane(normal: n, offset: o)` | `n·x − o` (the half-space below is solid) |
 //! | capsule | `Capsule(a, b, radius: r)` | `‖x − p‖ − r`, `p` the point of segment `ab` nearest `x` |
 //! | oriented box | `Box(center, half_extents: h, axis, angle, rounding: ρ)` | `‖max(q, 0)‖ + min(max_k q_k, 0) − ρ`, `q = |Rᵀ(x − c)| − (h − ρ)` |
+//! | triangle mesh | `Mesh(file, center, scale, axis, angle, cells)` | trilinear in a sampled field of `Rᵀ(x − c)` ([`crate::mesh`]) |
 //!
 //! Shapes are placed once, in `f64`, into a [`Placement`] (centre, three axes, radius, extents):
 //! the CPU reference converts it to its precision and the GPU backends to their `f32`
 //! `GpuCollider`, so they evaluate the same numbers with the same operations
 //! (`shaders/wgsl/colliders.wgsl`, `shaders/glsl/colliders.glsl`).
 
+use std::sync::Arc;
+
 use serde::{Deserialize, Serialize};
 
+use crate::mesh::DistanceField;
 use crate::real::{Real, Vec3};
 use crate::scene::{Motion, SphereSpec};
 
@@ -137,10 +141,41 @@ pub enum Shape {
         #[serde(default)]
         rounding: f64,
     },
+    /// A closed triangle mesh from a Wavefront OBJ file, rotated by `angle` degrees about `axis`,
+    /// scaled, and moved so that its origin is at `center`; sampled once as a signed distance
+    /// field ([`crate::mesh`]).
+    Mesh {
+        /// The OBJ file: a path relative to the scene file's folder, or absolute.
+        file: String,
+        /// Where the mesh's origin goes, m. Default `(0, 0, 0)`.
+        #[serde(default)]
+        center: [f64; 3],
+        /// Factor on the file's coordinates, m per file unit. Default 1.
+        #[serde(default = "one")]
+        scale: f64,
+        /// Axis of the rotation (normalised at load). Default `(0, 1, 0)`.
+        #[serde(default = "up")]
+        axis: [f64; 3],
+        /// Rotation angle, degrees. Default 0.
+        #[serde(default)]
+        angle: f64,
+        /// Cells of the distance field along the mesh's longest side (2 to
+        /// [`crate::mesh::MAX_CELLS`]). Default 32.
+        #[serde(default = "default_cells")]
+        cells: u32,
+    },
 }
 
 fn up() -> [f64; 3] {
     [0.0, 1.0, 0.0]
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn default_cells() -> u32 {
+    32
 }
 
 impl Shape {
@@ -151,6 +186,18 @@ impl Shape {
             Shape::Plane { .. } => ColliderKind::Plane,
             Shape::Capsule { .. } => ColliderKind::Capsule,
             Shape::Box { .. } => ColliderKind::Box,
+            Shape::Mesh { .. } => ColliderKind::Mesh,
+        }
+    }
+
+    /// A mesh's distance field (read and sampled the first time it is asked for; see
+    /// [`crate::mesh::load`]); `None` for the other kinds.
+    pub fn distance_field(&self) -> Option<Result<Arc<DistanceField>, crate::mesh::MeshError>> {
+        match self {
+            Shape::Mesh { file, scale, cells, .. } => {
+                Some(crate::mesh::load(std::path::Path::new(file), *scale, *cells))
+            }
+            _ => None,
         }
     }
 
@@ -175,6 +222,23 @@ impl Shape {
                 let reach = [0, 1, 2].map(|i| (0..3).map(|k| p.axes[k][i].abs() * half_extents[k]).sum());
                 around(center, reach)
             }
+            Shape::Mesh { center, .. } => {
+                let p = Placement::of(self);
+                let field = p.field?;
+                // The sampled grid's corners, rotated and moved.
+                let size = field.dims.map(|d| (d - 1) as f64 * field.cell);
+                let mut low = [f64::INFINITY; 3];
+                let mut high = [f64::NEG_INFINITY; 3];
+                for corner in 0..8 {
+                    let local = [0, 1, 2].map(|k| field.origin[k] + if corner >> k & 1 == 1 { size[k] } else { 0.0 });
+                    for i in 0..3 {
+                        let world = center[i] + (0..3).map(|k| p.axes[k][i] * local[k]).sum::<f64>();
+                        low[i] = low[i].min(world);
+                        high[i] = high[i].max(world);
+                    }
+                }
+                Some((low, high))
+            }
         }
     }
 
@@ -182,7 +246,7 @@ impl Shape {
     pub fn translate(&mut self, d: [f64; 3]) {
         let add = |p: &mut [f64; 3]| (0..3).for_each(|k| p[k] += d[k]);
         match self {
-            Shape::Sphere { center, .. } | Shape::Box { center, .. } => add(center),
+            Shape::Sphere { center, .. } | Shape::Box { center, .. } | Shape::Mesh { center, .. } => add(center),
             Shape::Capsule { a, b, .. } => {
                 add(a);
                 add(b);
@@ -207,12 +271,14 @@ pub enum ColliderKind {
     Capsule,
     /// [`Shape::Box`].
     Box,
+    /// [`Shape::Mesh`].
+    Mesh,
 }
 
 impl ColliderKind {
     /// Every kind, in the order of their codes (`kind` of the GPU struct).
-    pub const ALL: [ColliderKind; 4] =
-        [ColliderKind::Sphere, ColliderKind::Plane, ColliderKind::Capsule, ColliderKind::Box];
+    pub const ALL: [ColliderKind; 5] =
+        [ColliderKind::Sphere, ColliderKind::Plane, ColliderKind::Capsule, ColliderKind::Box, ColliderKind::Mesh];
 
     /// The kind's code in the GPU struct.
     pub fn code(self) -> u32 {
@@ -226,6 +292,7 @@ impl ColliderKind {
             ColliderKind::Plane => "COLLIDER_PLANE",
             ColliderKind::Capsule => "COLLIDER_CAPSULE",
             ColliderKind::Box => "COLLIDER_BOX",
+            ColliderKind::Mesh => "COLLIDER_MESH",
         }
     }
 
@@ -236,6 +303,7 @@ impl ColliderKind {
             ColliderKind::Plane => "plane",
             ColliderKind::Capsule => "capsule",
             ColliderKind::Box => "box",
+            ColliderKind::Mesh => "mesh",
         }
     }
 }
@@ -245,7 +313,7 @@ impl ColliderKind {
 pub const ON_SURFACE: f64 = 1e-6;
 
 /// A shape placed for evaluation, in `f64`: the fields of the GPU's `GpuCollider`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Placement {
     /// The kind.
     pub kind: ColliderKind,
@@ -254,9 +322,10 @@ pub struct Placement {
     /// The collider's axes, unit and orthogonal: a box's rotated axes, a capsule's `axes[0]` along
     /// `b − a`, a plane's `axes[1]` its normal.
     pub axes: [[f64; 3]; 3],
-    /// Radius (sphere, capsule) or rounding (box), m.
+    /// Radius (sphere, capsule), rounding (box) or the distance field's cell (mesh), m.
     pub radius: f64,
-    /// A capsule's half length (`extent[0]`); a box's half extents less the rounding, m.
+    /// A capsule's half length (`extent[0]`); a box's half extents less the rounding; the
+    /// origin of a mesh's distance field in its own coordinates, m.
     pub extent: [f64; 3],
     /// The thinnest the collider is, m (∞ for a plane): a path shorter than this cannot cross
     /// it, so XPBD sweeps only longer paths (see [`crate::constraints::project_swept`]).
@@ -264,6 +333,9 @@ pub struct Placement {
     /// Distance from the surface within which a vertex counts as on it, m
     /// ([`ON_SURFACE`] × the collider's size).
     pub tolerance: f64,
+    /// A mesh's distance field (`None` for the other kinds, and for a mesh that cannot be read,
+    /// which validation refuses).
+    pub field: Option<Arc<DistanceField>>,
 }
 
 fn normalized(v: [f64; 3]) -> [f64; 3] {
@@ -309,6 +381,7 @@ impl Placement {
                 extent: [0.0; 3],
                 thickness: 2.0 * radius,
                 tolerance: ON_SURFACE * radius,
+                field: None,
             },
             Shape::Plane { normal, offset } => {
                 let n = normalized(normal);
@@ -320,6 +393,7 @@ impl Placement {
                     extent: [0.0; 3],
                     thickness: f64::INFINITY,
                     tolerance: ON_SURFACE * offset.abs().max(1.0),
+                    field: None,
                 }
             }
             Shape::Capsule { a, b, radius } => {
@@ -335,6 +409,7 @@ impl Placement {
                     extent: [0.5 * length, 0.0, 0.0],
                     thickness: 2.0 * radius,
                     tolerance: ON_SURFACE * radius,
+                    field: None,
                 }
             }
             Shape::Box { center, half_extents, axis, angle, rounding } => {
@@ -347,6 +422,24 @@ impl Placement {
                     extent: half_extents.map(|h| h - rounding),
                     thickness: 2.0 * smallest,
                     tolerance: ON_SURFACE * half_extents.iter().copied().fold(0.0, f64::max),
+                    field: None,
+                }
+            }
+            Shape::Mesh { center, axis, angle, .. } => {
+                let field = shape.distance_field().and_then(Result::ok);
+                let (origin, cell, size) = field.as_ref().map_or(([0.0; 3], 0.0, 0.0), |f| {
+                    (f.origin, f.cell, f.dims.iter().map(|&d| (d - 1) as f64 * f.cell).fold(0.0, f64::max))
+                });
+                Self {
+                    kind: ColliderKind::Mesh,
+                    center,
+                    axes: rotation_columns(axis, angle),
+                    radius: cell,
+                    extent: origin,
+                    // Paths longer than two cells are swept: the field resolves nothing thinner.
+                    thickness: 2.0 * cell,
+                    tolerance: ON_SURFACE * size,
+                    field,
                 }
             }
         }
@@ -365,7 +458,7 @@ pub struct Surface<R> {
 
 /// A [`Placement`] in precision `R`, with its contact parameters and motion: what a solver
 /// evaluates.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Collider<R> {
     /// The kind.
     pub kind: ColliderKind,
@@ -389,6 +482,8 @@ pub struct Collider<R> {
     pub damping: R,
     /// The motion of its centre.
     pub motion: crate::motion::MotionOf<R>,
+    /// A mesh's distance field.
+    pub field: Option<Arc<DistanceField>>,
 }
 
 impl<R: Real> Collider<R> {
@@ -407,6 +502,7 @@ impl<R: Real> Collider<R> {
             friction: R::of(spec.friction),
             damping: R::of(spec.damping),
             motion: crate::motion::MotionOf::of(&spec.motion),
+            field: p.field,
         }
     }
 
@@ -427,6 +523,10 @@ impl<R: Real> Collider<R> {
             ColliderKind::Plane => plane_surface(x, center, self.axes[1]),
             ColliderKind::Capsule => capsule_surface(x, center, self.axes[0], self.extent.x, self.radius, self.axes[1]),
             ColliderKind::Box => box_surface(x, center, &self.axes, self.extent, self.radius),
+            ColliderKind::Mesh => match &self.field {
+                Some(field) => mesh_surface(x, center, &self.axes, field),
+                None => Surface { distance: R::infinity(), normal: Vec3::new(R::zero(), R::one(), R::zero()) },
+            },
         }
     }
 }
@@ -494,6 +594,15 @@ pub fn box_surface<R: Real>(
         2
     };
     Surface { distance: q[k] - rounding, normal: axes[k] * sign(p[k]) }
+}
+
+/// A mesh: its distance field at `p = Rᵀ(x − c)` ([`DistanceField::surface`]), the normal
+/// rotated back, `R n`.
+pub fn mesh_surface<R: Real>(x: Vec3<R>, center: Vec3<R>, axes: &[Vec3<R>; 3], field: &DistanceField) -> Surface<R> {
+    let d = x - center;
+    let local = field.surface(Vec3::new(d.dot(axes[0]), d.dot(axes[1]), d.dot(axes[2])));
+    let n = local.normal;
+    Surface { distance: local.distance, normal: axes[0] * n.x + axes[1] * n.y + axes[2] * n.z }
 }
 
 #[cfg(test)]

@@ -5,7 +5,8 @@
 //! * [`scene`]: what to simulate, loaded from RON ([`Scene`]), and [`validation`], with the
 //!   limits of [`budget`];
 //! * [`effects`]: the physical effects a scene switches on ([`EffectSet`]);
-//! * [`colliders`]: spheres, ground planes, capsules and boxes, and their signed distances;
+//! * [`colliders`]: spheres, ground planes, capsules, boxes and meshes, and their signed distances;
+//! * [`mesh`]: OBJ meshes read, checked closed and sampled as signed distance fields;
 //! * [`grid`] and [`springs`]: the `nx × ny` mesh and its structural, shear and bend springs;
 //! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
 //! * [`coloring`]: the springs in sets that share no vertex (XPBD's parallel projection order);
@@ -46,6 +47,7 @@ pub mod forces;
 pub mod grid;
 pub mod integrator;
 pub mod intersections;
+pub mod mesh;
 pub mod model;
 pub mod motion;
 pub mod quantities;

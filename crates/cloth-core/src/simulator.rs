@@ -172,6 +172,9 @@ impl Scene {
             Some("the number of colliders".into())
         } else if self.colliders.iter().zip(&new.colliders).any(|(a, b)| a.kind() != b.kind()) {
             Some("the kind of a collider".into())
+        } else if self.colliders.iter().zip(&new.colliders).any(|(a, b)| mesh_source(&a.shape) != mesh_source(&b.shape))
+        {
+            Some("a mesh collider's file, scale or cells".into())
         } else if self.integrator != new.integrator {
             Some("the integrator".into())
         } else {
@@ -189,4 +192,12 @@ pub fn check_state_size(expected: usize, state: &ClothState) -> Result<(), SimEr
         return Err(SimError::StateMismatch { expected, got: state.positions.len().min(state.velocities.len()) });
     }
     Ok(())
+}
+
+/// What a mesh collider's distance field is computed from (`None` for the other kinds).
+fn mesh_source(shape: &crate::colliders::Shape) -> Option<(&str, u64, u32)> {
+    match shape {
+        crate::colliders::Shape::Mesh { file, scale, cells, .. } => Some((file.as_str(), scale.to_bits(), *cells)),
+        _ => None,
+    }
 }

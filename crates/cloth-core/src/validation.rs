@@ -110,6 +110,44 @@ impl Checker {
                     );
                 }
             }
+            Shape::Mesh { center, scale, axis, angle, cells, .. } => {
+                self.vector(&f("shape.Mesh.center"), *center);
+                let before = self.problems.len() + self.more;
+                self.positive(&f("shape.Mesh.scale"), *scale, "(m per file unit)");
+                if self.vector(&f("shape.Mesh.axis"), *axis) && axis.iter().all(|x| *x == 0.0) {
+                    self.fail(
+                        f("shape.Mesh.axis"),
+                        "is (0, 0, 0): a rotation needs an axis",
+                        "give a direction, e.g. (0, 1, 0) (with angle 0 for no rotation)",
+                    );
+                }
+                self.finite(&f("shape.Mesh.angle"), *angle);
+                if !(2..=crate::mesh::MAX_CELLS).contains(cells) {
+                    self.fail(
+                        f("shape.Mesh.cells"),
+                        format!(
+                            "is {cells}: the distance field needs 2 to {} cells along the mesh",
+                            crate::mesh::MAX_CELLS
+                        ),
+                        "give a number of cells in that range (32 is the default)",
+                    );
+                }
+                // Read and sample the mesh only once its parameters are sound.
+                if self.problems.len() + self.more == before
+                    && let Some(Err(e)) = collider.shape.distance_field()
+                {
+                    let fix = match e {
+                        crate::mesh::MeshError::Unreadable { .. } => {
+                            "give the path of a readable OBJ file, relative to the scene file's folder"
+                        }
+                        crate::mesh::MeshError::Parse { .. } => "fix that line of the OBJ file",
+                        crate::mesh::MeshError::NotClosed { .. } => "close the mesh's holes (every edge in two faces)",
+                        crate::mesh::MeshError::Empty { .. } => "give an OBJ file with faces",
+                        crate::mesh::MeshError::TooLarge { .. } => "lower `cells` or simplify the mesh",
+                    };
+                    self.fail(f("shape.Mesh.file"), e.to_string(), fix);
+                }
+            }
             Shape::Box { center, half_extents, axis, angle, rounding } => {
                 self.vector(&f("shape.Box.center"), *center);
                 let mut sides = true;
@@ -353,7 +391,24 @@ impl Scene {
         if text.len() as u64 > MAX_SCENE_BYTES {
             return Err(invalid(format!("it is larger than {MAX_SCENE_BYTES} bytes, the most a scene file may be")));
         }
-        Self::from_ron_str(&text)
+        let scene: Scene =
+            ron::de::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text)).map_err(SceneError::from_ron)?;
+        let scene = scene.with_paths_from(path.parent().unwrap_or(std::path::Path::new("")));
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// The scene with every relative mesh file joined to `folder` (the folder of the scene file
+    /// it was read from: a scene names its meshes relative to itself).
+    pub fn with_paths_from(mut self, folder: &std::path::Path) -> Self {
+        for collider in &mut self.colliders {
+            if let Shape::Mesh { file, .. } = &mut collider.shape
+                && std::path::Path::new(file.as_str()).is_relative()
+            {
+                *file = folder.join(file.as_str()).display().to_string();
+            }
+        }
+        self
     }
 }
 

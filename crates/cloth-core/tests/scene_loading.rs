@@ -6,7 +6,7 @@ use proptest::prelude::*;
 #[test]
 fn shipped_scenes_load_and_drape_is_the_default() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
-    for name in ["drape", "hanging", "slide", "hold", "floor", "table", "capsule", "heap"] {
+    for name in ["drape", "hanging", "slide", "hold", "floor", "table", "capsule", "heap", "mesh"] {
         let scene = Scene::load(&dir.join(format!("{name}.ron"))).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(scene.name, name);
         assert_eq!(scene.validate().unwrap(), vec![], "{name} has warnings");
@@ -75,11 +75,50 @@ fn degenerate_colliders_are_refused_by_field() {
         ),
         ("Scene(colliders: [(shape: Torus())])", "Torus"),
         ("Scene(cloth: (ripple: (amplitude: 0.1, wavelength: 0)))", "cloth.ripple.wavelength: is 0 m"),
+        (
+            "Scene(colliders: [(shape: Mesh(file: \"no/such/mesh.obj\"))])",
+            "colliders[0].shape.Mesh.file: no/such/mesh.obj: cannot read it",
+        ),
+        (
+            "Scene(colliders: [(shape: Mesh(file: \"scenes/meshes/torus.obj\", cells: 1))])",
+            "colliders[0].shape.Mesh.cells: is 1",
+        ),
+        (
+            "Scene(colliders: [(shape: Mesh(file: \"scenes/meshes/torus.obj\", scale: 0))])",
+            "colliders[0].shape.Mesh.scale: is 0",
+        ),
     ];
     for (text, expected) in cases {
         let err = Scene::from_ron_str(text).unwrap_err().to_string();
         assert!(err.contains(expected), "{text}\n  gave: {err}\n  expected: {expected}");
     }
+}
+
+/// A mesh file that is open, or has a bad line, is refused naming the field, the file and its
+/// line; a relative path is read relative to the scene file.
+#[test]
+fn mesh_files_are_read_relative_to_the_scene_and_checked() {
+    let dir = std::env::temp_dir().join(format!("cloth-mesh-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    // A tetrahedron missing a face, and one with a bad index on line 5.
+    write("open.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n");
+    write("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 9\n");
+    write("tet.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n");
+    let scene = |file: &str| format!("Scene(colliders: [(shape: Mesh(file: \"{file}\", cells: 8))])");
+    for (file, expected) in [
+        ("open.obj", "open.obj:5: the mesh is not closed"),
+        ("bad.obj", "bad.obj:5: vertex 9 does not exist (4 vertices so far)"),
+    ] {
+        write("scene.ron", &scene(file));
+        let e = Scene::load(&dir.join("scene.ron")).unwrap_err().to_string();
+        assert!(e.contains("colliders[0].shape.Mesh.file") && e.contains(expected), "{file}: {e}");
+    }
+    write("scene.ron", &scene("tet.obj"));
+    let tet = Scene::load(&dir.join("scene.ron")).unwrap();
+    let field = tet.colliders[0].shape.distance_field().unwrap().unwrap();
+    assert_eq!(field.mesh.triangles.len(), 4);
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

@@ -88,17 +88,17 @@ gpu_struct! {
 }
 
 gpu_struct! {
-    /// One collider (128 bytes): a [`cloth_core::colliders::Placement`] in `f32`, with its
+    /// One collider (144 bytes): a [`cloth_core::colliders::Placement`] in `f32`, with its
     /// contact parameters and motion. Every kind uses the same fields; `kind` says which
     /// signed distance the kernels evaluate.
     GpuCollider as "Collider" {
         /// Centre at time 0, m (a plane's point nearest the origin, a capsule's midpoint).
         center: [f32; 3],
-        /// `ColliderKind::code`: 0 sphere, 1 plane, 2 capsule, 3 box.
+        /// `ColliderKind::code`: 0 sphere, 1 plane, 2 capsule, 3 box, 4 mesh.
         kind: u32,
         /// First axis (a capsule's direction; a box's rotated x).
         axis_x: [f32; 3],
-        /// Radius (sphere, capsule) or rounding (box), m.
+        /// Radius (sphere, capsule), rounding (box) or distance-field cell (mesh), m.
         radius: f32,
         /// Second axis (a plane's normal; a box's rotated y).
         axis_y: [f32; 3],
@@ -108,7 +108,8 @@ gpu_struct! {
         axis_z: [f32; 3],
         /// Friction coefficient `c_f`.
         friction: f32,
-        /// A capsule's half length (x); a box's half extents less the rounding, m.
+        /// A capsule's half length (x); a box's half extents less the rounding; a mesh's
+        /// distance-field origin in its own coordinates, m.
         extent: [f32; 3],
         /// Normal contact damping, N·s/m.
         damping: f32,
@@ -120,10 +121,18 @@ gpu_struct! {
         amplitude: [f32; 3],
         /// Thinnest width, m (a plane's is infinite): XPBD sweeps longer paths only.
         thickness: f32,
-        /// Padding to 124 bytes (a `vec3` in the shaders).
-        pad: [f32; 3],
+        /// A mesh's distance-field points along x, y, z.
+        field_dims: [u32; 3],
         /// Distance within which a vertex counts as on the surface, m.
         tolerance: f32,
+        /// Index of a mesh's first sample in the distance-field buffer.
+        field_first: u32,
+        /// Padding to 144 bytes.
+        pad0: u32,
+        /// Padding.
+        pad1: u32,
+        /// Padding.
+        pad2: u32,
     }
 }
 
@@ -223,8 +232,12 @@ impl GpuCollider {
             omega: c.motion.angular_frequency() as f32,
             amplitude: f(c.motion.amplitude),
             thickness: p.thickness as f32,
-            pad: [0.0; 3],
+            field_dims: p.field.as_ref().map_or([0; 3], |f| f.dims),
             tolerance: p.tolerance as f32,
+            field_first: 0,
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
         }
     }
 
@@ -232,10 +245,32 @@ impl GpuCollider {
     /// element so that the buffer is never empty (`GpuSimParams::collider_count` says how many
     /// are real).
     pub fn of_scene(scene: &Scene) -> Vec<Self> {
-        let mut colliders: Vec<Self> = SceneQuantities::of(scene).colliders.iter().map(Self::from_spec).collect();
+        let mut first = 0;
+        let mut colliders: Vec<Self> = (SceneQuantities::of(scene).colliders.iter())
+            .map(|spec| {
+                let mut c = Self::from_spec(spec);
+                c.field_first = first;
+                first += c.field_dims.iter().product::<u32>();
+                c
+            })
+            .collect();
         if colliders.is_empty() {
             colliders.push(Self::default());
         }
         colliders
+    }
+
+    /// The samples of every mesh collider's distance field of `scene`, one after the other in
+    /// the order of its colliders (what `field_first` indexes), m; at least one value, so that
+    /// the buffer is never empty.
+    pub fn distance_fields_of(scene: &Scene) -> Vec<f32> {
+        let mut samples: Vec<f32> = (SceneQuantities::of(scene).colliders.iter())
+            .filter_map(|spec| cloth_core::colliders::Placement::of(&spec.shape).field)
+            .flat_map(|field| field.samples.clone())
+            .collect();
+        if samples.is_empty() {
+            samples.push(0.0);
+        }
+        samples
     }
 }

@@ -19,8 +19,8 @@ impl MemoryEstimate {
     /// The buffers `plan.rs` creates for `scene`: four `vec4` state buffers (two positions, two
     /// velocities, 16 bytes a vertex each); RK4's scratch (four `vec4`s a vertex) and stage
     /// state; Verlet's half-step velocities; semi-implicit Euler's two packed states and pin
-    /// bits; XPBD's constraints (16 bytes), multipliers (4) and normal corrections; colliders and
-    /// parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
+    /// bits; XPBD's constraints (16 bytes), multipliers (4) and normal corrections; colliders, the
+    /// meshes' distance fields and parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
     /// overflow.
     pub fn of(scene: &Scene) -> Self {
         let [nx, ny] = scene.cloth.resolution.map(u128::from);
@@ -40,7 +40,12 @@ impl MemoryEstimate {
                 (20 * springs + 4 * vertices + 2 * COLOR_COUNT as u128 * COLOR_RANGE_STRIDE as u128, 16 * springs)
             }
         };
-        let colliders = 128 * scene.colliders.len().max(1) as u128;
+        // 144 bytes a collider, and 4 a distance-field sample of each mesh.
+        let samples: u128 = (scene.colliders.iter())
+            .filter_map(|c| c.shape.distance_field().and_then(Result::ok))
+            .map(|f| f.samples.len() as u128)
+            .sum();
+        let colliders = 144 * scene.colliders.len().max(1) as u128 + 4 * samples.max(1);
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
         Self {
             largest_buffer_bytes: clamp(largest.max(state)),

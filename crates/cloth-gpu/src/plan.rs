@@ -205,6 +205,8 @@ pub struct StateBuffers {
     pub params: BufferId,
     /// [`GpuCollider`]s.
     pub colliders: BufferId,
+    /// The mesh colliders' distance fields ([`GpuCollider::distance_fields_of`]), `f32` each.
+    pub distance_fields: BufferId,
     /// Positions `vec4` (w 1 free, 0 pinned), m, ping-pong.
     pub positions: [BufferId; 2],
     /// Velocities `vec4` (w the state's time), m/s, ping-pong.
@@ -243,10 +245,15 @@ const STATE_BINDINGS: [Binding; 7] = [PARAMS, READ, READ, READ, WRITE, WRITE, WR
 /// same out, the pin bits.
 const STEP_EXTRA_BINDINGS: [Binding; 6] = [WRITE, READ, READ, WRITE, WRITE, READ];
 
+/// The last binding of every cloth kernel: the mesh colliders' distance fields.
+const DISTANCE_FIELDS: Binding = READ;
+
 /// `xpbd`'s bindings: parameters, colliders, constraints, positions and velocities in, positions
-/// and velocities out, the deepest penetration, the multipliers, the normal corrections, and the
-/// colour range (a block of the colour-range buffer, chosen by a dynamic offset).
-const XPBD_BINDINGS: [Binding; 11] = [PARAMS, READ, READ, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, COLOR_RANGE];
+/// and velocities out, the deepest penetration, the multipliers, the normal corrections, the
+/// colour range (a block of the colour-range buffer, chosen by a dynamic offset) and the
+/// distance fields.
+const XPBD_BINDINGS: [Binding; 12] =
+    [PARAMS, READ, READ, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, COLOR_RANGE, DISTANCE_FIELDS];
 
 const NAME: [&str; 2] = ["A", "B"];
 
@@ -327,6 +334,11 @@ impl Plan {
         let state = StateBuffers {
             params: b.filled("params", BufferUsage::Uniform, bytemuck::bytes_of(&GpuSimParams::of(scene))),
             colliders: b.filled("colliders", storage, bytemuck::cast_slice(&GpuCollider::of_scene(scene))),
+            distance_fields: b.filled(
+                "distance fields",
+                storage,
+                bytemuck::cast_slice(&GpuCollider::distance_fields_of(scene)),
+            ),
             positions: NAME.map(|n| b.filled(&format!("positions {n}"), drawable, bytemuck::cast_slice(&positions))),
             velocities: NAME.map(|n| b.filled(&format!("velocities {n}"), storage, bytemuck::cast_slice(&velocities))),
             max_penetration: b.buffer("max penetration", storage, 4, None),
@@ -376,12 +388,19 @@ fn force_based(
     let xv_out = b.buffer("packed-state placeholder, (x, v.x) out", storage, 64, None);
     let v_out = b.buffer("packed-state placeholder, (v.y, v.z) out", storage, 64, None);
     let unpacked = [read, read, xv_out, v_out, read];
-    let kernel = b.kernel(Shader::Step, &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS].concat());
+    let kernel =
+        b.kernel(Shader::Step, &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS, &[DISTANCE_FIELDS]].concat());
     let blocks = BlockGrid::new(tuning, nx, ny, limits.max_workgroups_per_dimension);
     let w = blocks.width;
     let common = [s.params, s.colliders];
     let group = |b: &mut Builder, label: String, [x_in, v_in, x_out, v_out]: [BufferId; 4], packed: [BufferId; 5]| {
-        let buffers = [&common[..], &[x_in, v_in, x_out, v_out, s.max_penetration, rk4_scratch], &packed[..]].concat();
+        let buffers = [
+            &common[..],
+            &[x_in, v_in, x_out, v_out, s.max_penetration, rk4_scratch],
+            &packed[..],
+            &[s.distance_fields],
+        ]
+        .concat();
         b.group(kernel, label, buffers)
     };
     let pass = |pipeline, groups| Pass { pipeline, groups, workgroups: blocks.workgroups, dynamic_offset: None };
@@ -395,7 +414,7 @@ fn force_based(
             let pipeline = b.pipeline(kernel, "Euler substep", &step(0));
             schedule.substep.push(pass(pipeline, groups));
             if let Some(tile) = tile {
-                let tiled = b.kernel(Shader::Tiled(tile), &STATE_BINDINGS);
+                let tiled = b.kernel(Shader::Tiled(tile), &[STATE_BINDINGS.as_slice(), &[DISTANCE_FIELDS]].concat());
                 let constants = [
                     (Constant::TileWidth, tile.width),
                     (Constant::TileHeight, tile.height),
@@ -404,7 +423,16 @@ fn force_based(
                 ];
                 let pipeline = b.pipeline(tiled, "tiled Euler substeps", &constants);
                 let groups = [0, 1].map(|k| {
-                    let buffers = vec![s.params, s.colliders, p[k], v[k], p[1 - k], v[1 - k], s.max_penetration];
+                    let buffers = vec![
+                        s.params,
+                        s.colliders,
+                        p[k],
+                        v[k],
+                        p[1 - k],
+                        v[1 - k],
+                        s.max_penetration,
+                        s.distance_fields,
+                    ];
                     b.group(tiled, format!("tiled substeps {} -> {}", NAME[k], NAME[1 - k]), buffers)
                 });
                 let workgroups = tile.workgroups(nx, ny);
@@ -544,7 +572,8 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
     let groups = [0, 1].map(|k| {
         let (p, v) = (s.positions, s.velocities);
         let buffers = vec![s.params, s.colliders, constraint_buffer, p[k], v[k], p[1 - k], v[1 - k]];
-        let buffers = [buffers, vec![s.max_penetration, lambdas, corrections, range_buffer]].concat();
+        let buffers =
+            [buffers, vec![s.max_penetration, lambdas, corrections, range_buffer, s.distance_fields]].concat();
         b.group(kernel, format!("XPBD {} -> {}", NAME[k], NAME[1 - k]), buffers)
     });
     let pipelines = ["predict", "project one colour", "project the colliders", "finish"]

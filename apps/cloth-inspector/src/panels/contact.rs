@@ -23,6 +23,15 @@ fn new_collider(kind: ColliderKind, cloth_center: [f64; 3]) -> ColliderSpec {
             angle: 0.0,
             rounding: 0.0,
         },
+        // The torus the project ships (its path as seen from the repository's root).
+        ColliderKind::Mesh => Shape::Mesh {
+            file: "scenes/meshes/torus.obj".into(),
+            center: below,
+            scale: 1.0,
+            axis: [0.0, 1.0, 0.0],
+            angle: 0.0,
+            cells: 32,
+        },
     };
     ColliderSpec::of(shape)
 }
@@ -66,6 +75,20 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>, dragged: &mut usize) 
                 vector(ui, "rotation axis", axis, "", 0.01);
                 quantity(ui, "rotation angle", angle, "°", 0.5);
                 quantity(ui, "edge rounding", rounding, "m", 0.005);
+            }
+            Shape::Mesh { file, center, scale, axis, angle, cells } => {
+                ui.horizontal(|ui| {
+                    ui.label("OBJ file (rebuilds)");
+                    ui.text_edit_singleline(file);
+                });
+                vector(ui, "origin at", center, "m", 0.01);
+                quantity(ui, "scale", scale, "m per unit", 0.01);
+                vector(ui, "rotation axis", axis, "", 0.01);
+                quantity(ui, "rotation angle", angle, "°", 0.5);
+                ui.horizontal(|ui| {
+                    ui.add(egui::DragValue::new(cells).range(2..=cloth_core::mesh::MAX_CELLS));
+                    ui.label("distance-field cells along the mesh (rebuilds)");
+                });
             }
         }
         quantity(ui, "contact stiffness k_c", &mut collider.stiffness, "N/m", 10.0);
