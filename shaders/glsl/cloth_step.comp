@@ -230,10 +230,15 @@ void main() {
         if (EFFECT_CONTACT) {
             for (uint s = 0u; s < params.collider_count; s++) {
                 Collider collider = colliders[s];
+                vec3 center = collider_center(collider, t);
+                // The normal only for a vertex inside: outside, the distance alone.
+                if (collider_distance(collider, center, x) >= 0.0) {
+                    continue;
+                }
                 vec3 v_rel = v - collider_velocity(collider, t);
                 vec3 normal;
                 vec3 contact;
-                if (contact_force(v_rel, collider_surface(collider, collider_center(collider, t), x), collider.stiffness,
+                if (contact_force(v_rel, collider_surface(collider, center, x), collider.stiffness,
                                   collider.damping, normal, contact)) {
                     force += contact;
                     if (EFFECT_FRICTION) {
@@ -317,7 +322,7 @@ void main() {
             float deepest = 0.0;
             for (uint s = 0u; s < params.collider_count; s++) {
                 Collider collider = colliders[s];
-                deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
+                deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
             }
             if (deepest > 0.0) {
                 atomicMax(max_penetration_bits, floatBitsToUint(deepest));

@@ -172,10 +172,15 @@ void main() {
                 if (EFFECT_CONTACT) {
                     for (uint n = 0u; n < params.collider_count; n++) {
                         Collider collider = colliders[n];
+                        vec3 center = collider_center(collider, t);
+                        // The normal only for a vertex inside: outside, the distance alone.
+                        if (collider_distance(collider, center, x) >= 0.0) {
+                            continue;
+                        }
                         vec3 v_rel = v - collider_velocity(collider, t);
                         vec3 normal;
                         vec3 contact;
-                        if (contact_force(v_rel, collider_surface(collider, collider_center(collider, t), x), collider.stiffness,
+                        if (contact_force(v_rel, collider_surface(collider, center, x), collider.stiffness,
                                   collider.damping, normal, contact)) {
                             force += contact;
                             if (EFFECT_FRICTION) {
@@ -198,7 +203,7 @@ void main() {
                 if (is_output) {
                     for (uint n = 0u; n < params.collider_count; n++) {
                         Collider collider = colliders[n];
-                        deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
+                        deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
                     }
                 }
             }

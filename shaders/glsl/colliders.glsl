@@ -154,3 +154,95 @@ Surface collider_surface(Collider c, vec3 center, vec3 x) {
     // A kind compiled out is never in the buffer (the pipeline is built for the scene's kinds).
     return Surface(3.0e38, vec3(0.0, 1.0, 0.0));
 }
+
+// The signed distance alone (cloth_core::colliders::Collider::distance): each kind's surface
+// distance by the same operations, without the normal, which a vertex outside does not need.
+float sphere_distance(vec3 x, vec3 center, float radius) {
+    vec3 offset = x - center;
+    return sqrt(dot(offset, offset)) - radius;
+}
+
+float capsule_distance(vec3 x, vec3 center, vec3 axis, float half_length, float radius) {
+    float along = min(max(dot(x - center, axis), -half_length), half_length);
+    vec3 offset = x - (center + axis * along);
+    return sqrt(dot(offset, offset)) - radius;
+}
+
+float box_distance(vec3 x, Collider c, vec3 center) {
+    vec3 d = x - center;
+    vec3 q = vec3(abs(dot(d, c.axis_x)) - c.extent.x, abs(dot(d, c.axis_y)) - c.extent.y,
+                      abs(dot(d, c.axis_z)) - c.extent.z);
+    vec3 outside = vec3(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
+    float outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
+    if (outside_length > 0.0) {
+        return outside_length - c.radius;
+    }
+    if (q.x >= q.y && q.x >= q.z) {
+        return q.x - c.radius;
+    }
+    if (q.y >= q.z) {
+        return q.y - c.radius;
+    }
+    return q.z - c.radius;
+}
+
+float mesh_distance(vec3 x, Collider c, vec3 center) {
+    vec3 d = x - center;
+    vec3 p = vec3(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
+    float cell = c.radius;
+    vec3 g = (p - c.extent) * (1.0 / cell);
+    vec3 high = vec3(float(c.field_dims.x - 1u), float(c.field_dims.y - 1u), float(c.field_dims.z - 1u));
+    vec3 q = vec3(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
+    uint i = min(uint(floor(q.x)), c.field_dims.x - 2u);
+    uint j = min(uint(floor(q.y)), c.field_dims.y - 2u);
+    uint k = min(uint(floor(q.z)), c.field_dims.z - 2u);
+    float fx = q.x - float(i);
+    float fy = q.y - float(j);
+    float fz = q.z - float(k);
+    float gx = 1.0 - fx;
+    float gy = 1.0 - fy;
+    float gz = 1.0 - fz;
+    float c00 = field_sample(c, i, j, k) * gx + field_sample(c, i + 1u, j, k) * fx;
+    float c10 = field_sample(c, i, j + 1u, k) * gx + field_sample(c, i + 1u, j + 1u, k) * fx;
+    float c01 = field_sample(c, i, j, k + 1u) * gx + field_sample(c, i + 1u, j, k + 1u) * fx;
+    float c11 = field_sample(c, i, j + 1u, k + 1u) * gx + field_sample(c, i + 1u, j + 1u, k + 1u) * fx;
+    float c0 = c00 * gy + c10 * fy;
+    float c1 = c01 * gy + c11 * fy;
+    float value = c0 * gz + c1 * fz;
+    vec3 outside = vec3(g.x - q.x, g.y - q.y, g.z - q.z) * cell;
+    float outside_length = sqrt(dot(outside, outside));
+    if (outside_length > 0.0) {
+        return value + outside_length;
+    }
+    return value;
+}
+
+// The signed distance of collider c, its centre at `center`, at x.
+float collider_distance(Collider c, vec3 center, vec3 x) {
+    if (COLLIDER_SPHERE) {
+        if (c.kind == 0u) {
+            return sphere_distance(x, center, c.radius);
+        }
+    }
+    if (COLLIDER_PLANE) {
+        if (c.kind == 1u) {
+            return dot(x - center, c.axis_y);
+        }
+    }
+    if (COLLIDER_CAPSULE) {
+        if (c.kind == 2u) {
+            return capsule_distance(x, center, c.axis_x, c.extent.x, c.radius);
+        }
+    }
+    if (COLLIDER_BOX) {
+        if (c.kind == 3u) {
+            return box_distance(x, c, center);
+        }
+    }
+    if (COLLIDER_MESH) {
+        if (c.kind == 4u) {
+            return mesh_distance(x, c, center);
+        }
+    }
+    return 3.0e38;
+}

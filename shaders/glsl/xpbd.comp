@@ -122,17 +122,17 @@ float project_swept(inout vec3 x, vec3 x_start, Collider c, vec3 center) {
             return project_sphere_swept(x, x_start, center, c.radius);
         }
     }
-    Surface end_ = collider_surface(c, center, x);
-    if (end_.distance > 0.0 && c.kind != 1u) {
+    float end_ = collider_distance(c, center, x);
+    if (end_ > 0.0 && c.kind != 1u) {
         vec3 d = x - x_start;
         float len = sqrt(dot(d, d));
-        if (len > c.thickness && collider_surface(c, center, x_start).distance >= 0.0) {
+        if (len > c.thickness && collider_distance(c, center, x_start) >= 0.0) {
             float inverse_length = 1.0 / len;
             float stop = c.thickness * SWEEP_TOLERANCE;
             float s = 0.0;
             for (uint k = 0u; k < SWEEP_STEPS; k++) {
                 vec3 p = x_start + d * s;
-                float phi = collider_surface(c, center, p).distance;
+                float phi = collider_distance(c, center, p);
                 if (phi <= stop) {
                     vec3 moved = x - p;
                     x = p;
@@ -146,7 +146,11 @@ float project_swept(inout vec3 x, vec3 x_start, Collider c, vec3 center) {
         }
         return 0.0;
     }
-    return project_onto_surface(x, end_);
+    // The normal only for a vertex inside: outside the projection does nothing.
+    if (end_ < 0.0) {
+        return project_onto_surface(x, collider_surface(c, center, x));
+    }
+    return 0.0;
 }
 
 // Coulomb friction in position form: the tangential part of the substep's displacement is undone
@@ -253,8 +257,11 @@ void finish(uint i) {
                     Collider collider = colliders[s];
                     vec3 center = collider_center(collider, t_end);
                     vec3 x_start = x0 + (center - collider_center(collider, t));
-                    Surface surface = collider_surface(collider, center, x);
-                    x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
+                    // Off the collider friction does nothing: the normal only on it.
+                    if (collider_distance(collider, center, x) <= collider.tolerance) {
+                        Surface surface = collider_surface(collider, center, x);
+                        x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
+                    }
                 }
                 positions_out[i] = vec4(x, p.w);
             }
@@ -266,7 +273,7 @@ void finish(uint i) {
         float deepest = 0.0;
         for (uint s = 0u; s < params.collider_count; s++) {
             Collider collider = colliders[s];
-            deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_end), x).distance);
+            deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_end), x));
         }
         if (deepest > 0.0) {
             atomicMax(max_penetration_bits, floatBitsToUint(deepest));

@@ -231,8 +231,13 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         if (EFFECT_CONTACT) {
             for (var s = 0u; s < params.collider_count; s++) {
                 let collider = colliders[s];
+                let center = collider_center(collider, t);
+                // The normal only for a vertex inside: outside, the distance alone.
+                if (collider_distance(collider, center, x) >= 0.0) {
+                    continue;
+                }
                 let v_rel = v - collider_velocity(collider, t);
-                let surface = collider_surface(collider, collider_center(collider, t), x);
+                let surface = collider_surface(collider, center, x);
                 let c = contact_force(v_rel, surface, collider.stiffness, collider.damping);
                 if (c.hit) {
                     force += c.force;
@@ -320,7 +325,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             var deepest = 0.0;
             for (var s = 0u; s < params.collider_count; s++) {
                 let collider = colliders[s];
-                deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
+                deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
             }
             if (deepest > 0.0) {
                 atomicMax(&max_penetration_bits, bitcast<u32>(deepest));

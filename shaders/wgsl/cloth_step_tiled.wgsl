@@ -175,8 +175,13 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
                 if (EFFECT_CONTACT) {
                     for (var n = 0u; n < params.collider_count; n++) {
                         let collider = colliders[n];
+                        let center = collider_center(collider, t);
+                        // The normal only for a vertex inside: outside, the distance alone.
+                        if (collider_distance(collider, center, x) >= 0.0) {
+                            continue;
+                        }
                         let v_rel = v - collider_velocity(collider, t);
-                        let surface = collider_surface(collider, collider_center(collider, t), x);
+                        let surface = collider_surface(collider, center, x);
                         let contact = contact_force(v_rel, surface, collider.stiffness, collider.damping);
                         if (contact.hit) {
                             force += contact.force;
@@ -200,7 +205,7 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
                 if (is_output) {
                     for (var n = 0u; n < params.collider_count; n++) {
                         let collider = colliders[n];
-                        deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_out), x_new).distance);
+                        deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
                     }
                 }
             }

@@ -164,3 +164,95 @@ fn collider_surface(c: Collider, center: vec3<f32>, x: vec3<f32>) -> Surface {
     // A kind compiled out is never in the buffer (the pipeline is built for the scene's kinds).
     return Surface(3.0e38, vec3<f32>(0.0, 1.0, 0.0));
 }
+
+// The signed distance alone (cloth_core::colliders::Collider::distance): each kind's surface
+// distance by the same operations, without the normal, which a vertex outside does not need.
+fn sphere_distance(x: vec3<f32>, center: vec3<f32>, radius: f32) -> f32 {
+    let offset = x - center;
+    return sqrt(dot(offset, offset)) - radius;
+}
+
+fn capsule_distance(x: vec3<f32>, center: vec3<f32>, axis: vec3<f32>, half_length: f32, radius: f32) -> f32 {
+    let along = min(max(dot(x - center, axis), -half_length), half_length);
+    let offset = x - (center + axis * along);
+    return sqrt(dot(offset, offset)) - radius;
+}
+
+fn box_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
+    let d = x - center;
+    let q = vec3<f32>(abs(dot(d, c.axis_x)) - c.extent.x, abs(dot(d, c.axis_y)) - c.extent.y,
+                      abs(dot(d, c.axis_z)) - c.extent.z);
+    let outside = vec3<f32>(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
+    let outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
+    if (outside_length > 0.0) {
+        return outside_length - c.radius;
+    }
+    if (q.x >= q.y && q.x >= q.z) {
+        return q.x - c.radius;
+    }
+    if (q.y >= q.z) {
+        return q.y - c.radius;
+    }
+    return q.z - c.radius;
+}
+
+fn mesh_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
+    let d = x - center;
+    let p = vec3<f32>(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
+    let cell = c.radius;
+    let g = (p - c.extent) * (1.0 / cell);
+    let high = vec3<f32>(f32(c.field_dims.x - 1u), f32(c.field_dims.y - 1u), f32(c.field_dims.z - 1u));
+    let q = vec3<f32>(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
+    let i = min(u32(floor(q.x)), c.field_dims.x - 2u);
+    let j = min(u32(floor(q.y)), c.field_dims.y - 2u);
+    let k = min(u32(floor(q.z)), c.field_dims.z - 2u);
+    let fx = q.x - f32(i);
+    let fy = q.y - f32(j);
+    let fz = q.z - f32(k);
+    let gx = 1.0 - fx;
+    let gy = 1.0 - fy;
+    let gz = 1.0 - fz;
+    let c00 = field_sample(c, i, j, k) * gx + field_sample(c, i + 1u, j, k) * fx;
+    let c10 = field_sample(c, i, j + 1u, k) * gx + field_sample(c, i + 1u, j + 1u, k) * fx;
+    let c01 = field_sample(c, i, j, k + 1u) * gx + field_sample(c, i + 1u, j, k + 1u) * fx;
+    let c11 = field_sample(c, i, j + 1u, k + 1u) * gx + field_sample(c, i + 1u, j + 1u, k + 1u) * fx;
+    let c0 = c00 * gy + c10 * fy;
+    let c1 = c01 * gy + c11 * fy;
+    let value = c0 * gz + c1 * fz;
+    let outside = vec3<f32>(g.x - q.x, g.y - q.y, g.z - q.z) * cell;
+    let outside_length = sqrt(dot(outside, outside));
+    if (outside_length > 0.0) {
+        return value + outside_length;
+    }
+    return value;
+}
+
+// The signed distance of collider c, its centre at `center`, at x.
+fn collider_distance(c: Collider, center: vec3<f32>, x: vec3<f32>) -> f32 {
+    if (COLLIDER_SPHERE) {
+        if (c.kind == 0u) {
+            return sphere_distance(x, center, c.radius);
+        }
+    }
+    if (COLLIDER_PLANE) {
+        if (c.kind == 1u) {
+            return dot(x - center, c.axis_y);
+        }
+    }
+    if (COLLIDER_CAPSULE) {
+        if (c.kind == 2u) {
+            return capsule_distance(x, center, c.axis_x, c.extent.x, c.radius);
+        }
+    }
+    if (COLLIDER_BOX) {
+        if (c.kind == 3u) {
+            return box_distance(x, c, center);
+        }
+    }
+    if (COLLIDER_MESH) {
+        if (c.kind == 4u) {
+            return mesh_distance(x, c, center);
+        }
+    }
+    return 3.0e38;
+}

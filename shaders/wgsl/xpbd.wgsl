@@ -122,17 +122,17 @@ fn project_swept(x: vec3<f32>, x_start: vec3<f32>, c: Collider, center: vec3<f32
             return project_sphere_swept(x, x_start, center, c.radius);
         }
     }
-    let end = collider_surface(c, center, x);
-    if (end.distance > 0.0 && c.kind != 1u) {
+    let end = collider_distance(c, center, x);
+    if (end > 0.0 && c.kind != 1u) {
         let d = x - x_start;
         let length = sqrt(dot(d, d));
-        if (length > c.thickness && collider_surface(c, center, x_start).distance >= 0.0) {
+        if (length > c.thickness && collider_distance(c, center, x_start) >= 0.0) {
             let inverse_length = 1.0 / length;
             let stop = c.thickness * SWEEP_TOLERANCE;
             var s = 0.0;
             for (var k = 0u; k < SWEEP_STEPS; k++) {
                 let p = x_start + d * s;
-                let phi = collider_surface(c, center, p).distance;
+                let phi = collider_distance(c, center, p);
                 if (phi <= stop) {
                     let moved = x - p;
                     return Projection(p, sqrt(dot(moved, moved)));
@@ -145,7 +145,11 @@ fn project_swept(x: vec3<f32>, x_start: vec3<f32>, c: Collider, center: vec3<f32
         }
         return Projection(x, 0.0);
     }
-    return project_onto_surface(x, end);
+    // The normal only for a vertex inside: outside the projection does nothing.
+    if (end < 0.0) {
+        return project_onto_surface(x, collider_surface(c, center, x));
+    }
+    return Projection(x, 0.0);
 }
 
 // Coulomb friction in position form: the tangential part of the substep's displacement is undone
@@ -256,8 +260,11 @@ fn finish(i: u32) {
                     let collider = colliders[s];
                     let center = collider_center(collider, t_end);
                     let x_start = x0 + (center - collider_center(collider, t));
-                    let surface = collider_surface(collider, center, x);
-                    x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
+                    // Off the collider friction does nothing: the normal only on it.
+                    if (collider_distance(collider, center, x) <= collider.tolerance) {
+                        let surface = collider_surface(collider, center, x);
+                        x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
+                    }
                 }
                 positions_out[i] = vec4<f32>(x, p.w);
             }
@@ -269,7 +276,7 @@ fn finish(i: u32) {
         var deepest = 0.0;
         for (var s = 0u; s < params.collider_count; s++) {
             let collider = colliders[s];
-            deepest = max(deepest, -collider_surface(collider, collider_center(collider, t_end), x).distance);
+            deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_end), x));
         }
         if (deepest > 0.0) {
             atomicMax(&max_penetration_bits, bitcast<u32>(deepest));

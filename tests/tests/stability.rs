@@ -513,11 +513,11 @@ fn tilted_table_holds_with_friction_and_slides_without(backend: &Backend) {
     });
 }
 
-/// `scenes/capsule.ron` at 16 × 16 (cells smaller than the pole's radius) for 1.5 s: the cloth
+/// `scenes/capsule.ron` at 16 × 16 (cells smaller than the pole's radius) for 1.25 s: the cloth
 /// falls across the pole and hangs over it, no deeper than 10% of the spacing inside it; at the
 /// end its middle row rests on the pole and its sides hang below it.
 fn cloth_falls_across_a_capsule(backend: &Backend) {
-    let scene = sized(cloth_conformance::scene("capsule.ron"), 16, 90);
+    let scene = sized(cloth_conformance::scene("capsule.ron"), 16, 75);
     let Shape::Capsule { a, radius, .. } = scene.colliders[0].shape else {
         panic!("capsule.ron starts with a capsule")
     };
@@ -532,11 +532,11 @@ fn cloth_falls_across_a_capsule(backend: &Backend) {
     });
 }
 
-/// `scenes/mesh.ron` at 16 × 16 for 1.5 s: the cloth falls onto a ring, a triangle mesh sampled as
+/// `scenes/mesh.ron` at 16 × 16 for 1.25 s: the cloth falls onto a ring, a triangle mesh sampled as
 /// a distance field, no deeper than 10% of the spacing inside anything; at the end it rests on the
 /// ring (its highest vertex within 5 cm of the ring's top, 0.3 m) and sags into its hole.
 fn cloth_falls_onto_a_mesh(backend: &Backend) {
-    let scene = sized(cloth_conformance::scene("mesh.ron"), 16, 90);
+    let scene = sized(cloth_conformance::scene("mesh.ron"), 16, 75);
     let top = 0.3;
     every_integrator(backend, &scene, 0.1, 0.2, |outcome| {
         let last = outcome.last();
@@ -549,12 +549,12 @@ fn cloth_falls_onto_a_mesh(backend: &Backend) {
 }
 
 /// `scenes/heap.ron` at 32 × 32 (from this size up a wave of its starting ripple spans enough
-/// vertices for the folds to cross), 1.5 s: without self-collision the cloth passes through
+/// vertices for the folds to cross), 1 s: without self-collision the cloth passes through
 /// itself, and the counter sees it: more than 0 edge–triangle crossings in some frame (counted
 /// every 10 frames and at the end). Proof that the counter counts what it should; no bound is
 /// claimed on how many.
 fn heap_passes_through_itself_without_self_collision(backend: &Backend) {
-    let scene = sized(cloth_conformance::scene("heap.ron"), 32, 90);
+    let scene = sized(cloth_conformance::scene("heap.ron"), 32, 60);
     for integrator in Integrator::ALL {
         let scene = with_integrator(&scene, integrator);
         let Some(outcome) = run_checked(backend, &scene, scene.time.frames, 10) else { return };

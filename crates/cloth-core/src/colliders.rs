@@ -516,6 +516,26 @@ impl<R: Real> Collider<R> {
         }
     }
 
+    /// The signed distance `φ(x)` alone, m, with the collider's centre at `center`: exactly
+    /// [`Self::surface`]'s distance, by the same operations, without the normal (a vertex far
+    /// from the collider, the common case, needs no more: the kernels skip a division per vertex
+    /// and collider).
+    pub fn distance(&self, center: Vec3<R>, x: Vec3<R>) -> R {
+        match self.kind {
+            ColliderKind::Sphere => sphere_distance(x, center, self.radius),
+            ColliderKind::Plane => (x - center).dot(self.axes[1]),
+            ColliderKind::Capsule => capsule_distance(x, center, self.axes[0], self.extent.x, self.radius),
+            ColliderKind::Box => box_distance(x, center, &self.axes, self.extent, self.radius),
+            ColliderKind::Mesh => match &self.field {
+                Some(field) => {
+                    let d = x - center;
+                    field.distance(Vec3::new(d.dot(self.axes[0]), d.dot(self.axes[1]), d.dot(self.axes[2])))
+                }
+                None => R::infinity(),
+            },
+        }
+    }
+
     /// The surface seen from `x` with the collider's centre at `center`.
     pub fn surface(&self, center: Vec3<R>, x: Vec3<R>) -> Surface<R> {
         match self.kind {
@@ -538,6 +558,38 @@ pub fn sphere_surface<R: Real>(x: Vec3<R>, center: Vec3<R>, radius: R) -> Surfac
     let normal =
         if distance > R::zero() { offset * (R::one() / distance) } else { Vec3::new(R::zero(), R::one(), R::zero()) };
     Surface { distance: distance - radius, normal }
+}
+
+/// [`sphere_surface`]'s distance alone.
+pub fn sphere_distance<R: Real>(x: Vec3<R>, center: Vec3<R>, radius: R) -> R {
+    let offset = x - center;
+    offset.dot(offset).sqrt() - radius
+}
+
+/// [`capsule_surface`]'s distance alone.
+pub fn capsule_distance<R: Real>(x: Vec3<R>, center: Vec3<R>, axis: Vec3<R>, half_length: R, radius: R) -> R {
+    let along = (x - center).dot(axis).max(-half_length).min(half_length);
+    let offset = x - (center + axis * along);
+    offset.dot(offset).sqrt() - radius
+}
+
+/// [`box_surface`]'s distance alone.
+pub fn box_distance<R: Real>(x: Vec3<R>, center: Vec3<R>, axes: &[Vec3<R>; 3], extent: Vec3<R>, rounding: R) -> R {
+    let d = x - center;
+    let q = [d.dot(axes[0]).abs() - extent.x, d.dot(axes[1]).abs() - extent.y, d.dot(axes[2]).abs() - extent.z];
+    let outside = [q[0].max(R::zero()), q[1].max(R::zero()), q[2].max(R::zero())];
+    let outside_length = (outside[0] * outside[0] + outside[1] * outside[1] + outside[2] * outside[2]).sqrt();
+    if outside_length > R::zero() {
+        return outside_length - rounding;
+    }
+    let largest = if q[0] >= q[1] && q[0] >= q[2] {
+        q[0]
+    } else if q[1] >= q[2] {
+        q[1]
+    } else {
+        q[2]
+    };
+    largest - rounding
 }
 
 /// `φ = n·(x − p)`, `p` a point of the plane.

@@ -122,18 +122,18 @@ pub fn project_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, collider: &Coll
     if collider.kind == ColliderKind::Sphere {
         return project_sphere_swept(x, x_start, center, collider.radius);
     }
-    let end = collider.surface(center, *x);
-    if end.distance > R::zero() && collider.kind != ColliderKind::Plane {
+    let end = collider.distance(center, *x);
+    if end > R::zero() && collider.kind != ColliderKind::Plane {
         let d = *x - x_start;
         let length = d.dot(d).sqrt();
         // A vertex that starts inside leaves: nothing to stop.
-        if length > collider.thickness && collider.surface(center, x_start).distance >= R::zero() {
+        if length > collider.thickness && collider.distance(center, x_start) >= R::zero() {
             let (inverse_length, stop) = (R::one() / length, collider.thickness * R::of(SWEEP_TOLERANCE));
             let mut s = R::zero();
             for _ in 0..SWEEP_STEPS {
                 let p = x_start + d * s;
                 // (φ may fall just below 0 by rounding after a step onto a face: the path enters there.)
-                let phi = collider.surface(center, p).distance;
+                let phi = collider.distance(center, p);
                 if phi <= stop {
                     let moved = (*x - p).length();
                     *x = p;
@@ -147,7 +147,8 @@ pub fn project_swept<R: Real>(x: &mut Vec3<R>, x_start: Vec3<R>, collider: &Coll
         }
         return R::zero();
     }
-    project_onto_surface(x, end)
+    // The normal only for a vertex inside (φ < 0): outside the projection does nothing.
+    if end < R::zero() { project_onto_surface(x, collider.surface(center, *x)) } else { R::zero() }
 }
 
 /// Coulomb friction on a contact, in position form (the model's

@@ -57,7 +57,7 @@ impl Energy {
                 // Where the collider is at the state's time.
                 let (center, _) = collider.at(state.time_s, moving);
                 for i in 0..state.positions.len() {
-                    let depth = -collider.surface(center, crate::real::Vec3::from_f64(p(i))).distance;
+                    let depth = -collider.distance(center, crate::real::Vec3::from_f64(p(i)));
                     if depth > 0.0 {
                         e.contact += 0.5 * spec.stiffness * depth * depth;
                     }

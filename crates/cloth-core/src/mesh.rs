@@ -337,6 +337,35 @@ impl DistanceField {
         Ok(Self { origin, cell, dims, samples, mesh })
     }
 
+    /// [`Self::surface`]'s distance alone, by the same operations.
+    pub fn distance<R: Real>(&self, p: Vec3<R>) -> R {
+        let cell = R::of(self.cell);
+        let origin = Vec3::from_f64(self.origin);
+        let g = (p - origin) * (R::one() / cell);
+        let high = self.dims.map(|d| R::of((d - 1) as f64));
+        let clamp = |x: R, hi: R| x.max(R::zero()).min(hi);
+        let q = [clamp(g.x, high[0]), clamp(g.y, high[1]), clamp(g.z, high[2])];
+        let corner = |x: R, d: u32| x.floor().to_f64_lossy().min((d - 2) as f64) as u32;
+        let (i, j, k) = (corner(q[0], self.dims[0]), corner(q[1], self.dims[1]), corner(q[2], self.dims[2]));
+        let (fx, fy, fz) = (q[0] - R::of(i as f64), q[1] - R::of(j as f64), q[2] - R::of(k as f64));
+        let [nx, ny, _] = self.dims;
+        let at = |di: u32, dj: u32, dk: u32| {
+            R::of(self.samples[((i + di) + nx * ((j + dj) + ny * (k + dk))) as usize] as f64)
+        };
+        let one = R::one();
+        let (gx, gy, gz) = (one - fx, one - fy, one - fz);
+        let c00 = at(0, 0, 0) * gx + at(1, 0, 0) * fx;
+        let c10 = at(0, 1, 0) * gx + at(1, 1, 0) * fx;
+        let c01 = at(0, 0, 1) * gx + at(1, 0, 1) * fx;
+        let c11 = at(0, 1, 1) * gx + at(1, 1, 1) * fx;
+        let c0 = c00 * gy + c10 * fy;
+        let c1 = c01 * gy + c11 * fy;
+        let value = c0 * gz + c1 * fz;
+        let outside = Vec3::new(g.x - q[0], g.y - q[1], g.z - q[2]) * cell;
+        let outside_length = outside.dot(outside).sqrt();
+        if outside_length > R::zero() { value + outside_length } else { value }
+    }
+
     /// The surface seen from `p`, a point in the mesh's coordinates: `φ` trilinear between the
     /// eight samples around it, the normal the normalised gradient of that trilinear function (`+Y`
     /// where it vanishes). Outside the grid, `φ` at the nearest grid point plus the distance to it,

@@ -440,8 +440,18 @@ impl<R: Real> ReferenceSimulator<R> {
                     continue;
                 }
                 for (c, &(center, moved)) in p.colliders.iter().zip(&colliders) {
-                    let surface = c.surface(center, *xi);
-                    *xi = contact_friction(*xi, x0[i] + moved, surface, c.tolerance, c.friction, normal_correction[i]);
+                    // Off the collider friction does nothing: the normal only on it.
+                    if c.distance(center, *xi) <= c.tolerance {
+                        let surface = c.surface(center, *xi);
+                        *xi = contact_friction(
+                            *xi,
+                            x0[i] + moved,
+                            surface,
+                            c.tolerance,
+                            c.friction,
+                            normal_correction[i],
+                        );
+                    }
                 }
             }
         }
@@ -491,7 +501,7 @@ impl<R: Real> ReferenceSimulator<R> {
         self.positions
             .par_iter()
             .with_min_len(PARALLEL_CHUNK)
-            .map(|&x| colliders.iter().map(|(c, center)| -c.surface(*center, x).distance).fold(R::zero(), R::max))
+            .map(|&x| colliders.iter().map(|(c, center)| -c.distance(*center, x)).fold(R::zero(), R::max))
             .reduce(R::zero, R::max)
     }
 }
@@ -613,6 +623,11 @@ fn variant_force_and_stick<R: Real, const E: u16>(
     for s in &p.colliders {
         let (center, collider_velocity) = s.at(ctx.time, Variant::<E>::MOVING_COLLIDERS);
         let v_rel = v - collider_velocity;
+        // The normal only for a vertex inside (φ < 0): the common case, outside, needs the
+        // distance alone, as on the GPU.
+        if s.distance(center, x) >= R::zero() {
+            continue;
+        }
         if let Some(contact) = contact_force(v_rel, s.surface(center, x), s.stiffness, s.damping) {
             force += contact.force;
             if Variant::<E>::FRICTION {
