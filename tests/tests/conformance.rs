@@ -128,8 +128,9 @@ fn short_horizon_matches_the_references(backend: &Backend) {
     }
 }
 
-/// Every collider kind under every integrator against the CPU reference of the backend's
-/// precision, within the short-horizon tolerance: the cloths of `floor.ron` (a ground),
+/// Every collider kind under semi-implicit Euler and XPBD (the force kernels' contact, which
+/// Verlet's and RK4's stages call alike, and XPBD's projections and sweeps) against the CPU
+/// reference of the backend's precision, within the short-horizon tolerance: the cloths of `floor.ron` (a ground),
 /// `table.ron` (a rounded box), `capsule.ron` and `mesh.ron` (a triangle mesh's distance field) at
 /// 11 × 11 (a column of vertices over the pole), dropped from 2 cm above what they land on, for
 /// 0.07 s of contact. The contact must have been reached. XPBD gets its own short-horizon
@@ -149,7 +150,7 @@ fn every_collider_kind_matches_the_reference(backend: &Backend) {
         base.cloth.center[1] = top + 0.02;
         base.effects = base.effects.without(cloth_core::Effect::Friction);
         base.time.substeps = cloth_core::Substeps::Fixed(20);
-        for integrator in Integrator::ALL {
+        for integrator in [Integrator::SemiImplicitEuler, Integrator::Xpbd] {
             let scene = Scene { integrator, ..base.clone() };
             let frames = 8;
             let Some((state, penetration)) = run(backend, &scene, frames) else { return };
