@@ -527,7 +527,7 @@ impl InspectorApp {
         ui.painter().text(
             rect.left_bottom() + egui::vec2(8.0, -8.0),
             egui::Align2::LEFT_BOTTOM,
-            "drag: orbit · right-drag: pan · scroll: zoom · shift-drag: move sphere 0",
+            "drag: orbit · right-drag: pan · scroll: zoom · shift-drag: move the collider chosen in Contact",
             egui::FontId::proportional(12.0),
             egui::Color32::from_gray(60),
         );
