@@ -12,9 +12,9 @@
 #                each backend (SOAK_SECONDS each, default 200: XPBD's million substeps do not end
 #                in that; 0 skips the soak)
 #   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
-#   effects      `cloth bench --effects`: what each effect and collider kind of scenes/flag.ron costs
-#                (EFFECT_GRIDS, default 128,512), and the mesh collider of scenes/mesh.ron
-#                (MESH_EFFECT_GRIDS, default 512)
+#   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs (EFFECT_GRIDS,
+#                default 128,512), and each collider kind of scenes/colliders.ron
+#                (COLLIDER_EFFECT_GRIDS, default 256)
 #   tuning       the bench at 512², 1024² and 2048² × 64 under each GPU tuning in TUNINGS (a list
 #                separated by ';' of `cloth bench` flags; default: the defaults, then block widths
 #                32 and 128, workgroups of 128 and 512, forward and alternating block orders)
@@ -83,9 +83,9 @@ if [[ " $checks " == *" effects "* ]]; then
   echo "== bench --effects"
   "$CLOTH" bench --effects --backends wgpu,vulkano --grids "${EFFECT_GRIDS:-128,512}" --frames 10 \
     --csv "$OUT/effects.csv" 2>&1 | tee "$OUT/effects.txt"
-  echo "== bench --effects on scenes/mesh.ron (the mesh collider's row)"
-  "$CLOTH" bench --effects --scene scenes/mesh.ron --backends wgpu,vulkano --grids "${MESH_EFFECT_GRIDS:-512}" \
-    --frames 10 --csv "$OUT/effects-mesh.csv" 2>&1 | tee "$OUT/effects-mesh.txt"
+  echo "== bench --effects on scenes/colliders.ron (a row for each collider kind)"
+  "$CLOTH" bench --effects --scene scenes/colliders.ron --backends wgpu,vulkano --grids "${COLLIDER_EFFECT_GRIDS:-256}" \
+    --frames 10 --csv "$OUT/effects-colliders.csv" 2>&1 | tee "$OUT/effects-colliders.txt"
 fi
 
 # Runs the bench with the binary $1 and the flags $3.., labelling its CSV rows with $2.

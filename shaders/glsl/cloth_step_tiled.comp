@@ -174,13 +174,14 @@ void main() {
                         Collider collider = colliders[n];
                         vec3 center = collider_center(collider, t);
                         // The normal only for a vertex inside: outside, the distance alone.
-                        if (collider_distance(collider, center, x) >= 0.0) {
+                        Surface surface = collider_contact(collider, center, x);
+                        if (surface.distance >= 0.0) {
                             continue;
                         }
                         vec3 v_rel = v - collider_velocity(collider, t);
                         vec3 normal;
                         vec3 contact;
-                        if (contact_force(v_rel, collider_surface(collider, center, x), collider.stiffness,
+                        if (contact_force(v_rel, surface, collider.stiffness,
                                   collider.damping, normal, contact)) {
                             force += contact;
                             if (EFFECT_FRICTION) {

@@ -71,50 +71,79 @@ float field_sample(Collider c, uint i, uint j, uint k) {
     return distance_fields[c.field_first + i + c.field_dims.x * (j + c.field_dims.y * k)];
 }
 
-// A mesh: trilinear in its distance field at p = Rᵀ(x − c), the normal the trilinear gradient
-// (outside the field's grid: the nearest grid point's φ plus the way there), rotated back.
-Surface mesh_surface(vec3 x, Collider c, vec3 center) {
+// The cell of a mesh's distance field around p = Rᵀ(x − c) (cloth_core::mesh::FieldCell): its
+// eight samples (c000, c100, c010, c110 in `low`, the same at k + 1 in `high`), the fractions of
+// the way across it, and `outside`, the way (m) from the nearest grid point when x is outside the
+// grid (zero inside).
+struct FieldCell {
+    vec4 low;
+    vec4 high;
+    vec3 fraction;
+    vec3 outside;
+};
+
+FieldCell field_cell(vec3 x, Collider c, vec3 center) {
     vec3 d = x - center;
     vec3 p = vec3(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
     float cell = c.radius;
     vec3 g = (p - c.extent) * (1.0 / cell);
     vec3 high = vec3(float(c.field_dims.x - 1u), float(c.field_dims.y - 1u), float(c.field_dims.z - 1u));
     vec3 q = vec3(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
+    // The cell's lowest corner: at most the last but one point, so the cell exists.
     uint i = min(uint(floor(q.x)), c.field_dims.x - 2u);
     uint j = min(uint(floor(q.y)), c.field_dims.y - 2u);
     uint k = min(uint(floor(q.z)), c.field_dims.z - 2u);
-    float fx = q.x - float(i);
-    float fy = q.y - float(j);
-    float fz = q.z - float(k);
-    float c000 = field_sample(c, i, j, k);
-    float c100 = field_sample(c, i + 1u, j, k);
-    float c010 = field_sample(c, i, j + 1u, k);
-    float c110 = field_sample(c, i + 1u, j + 1u, k);
-    float c001 = field_sample(c, i, j, k + 1u);
-    float c101 = field_sample(c, i + 1u, j, k + 1u);
-    float c011 = field_sample(c, i, j + 1u, k + 1u);
-    float c111 = field_sample(c, i + 1u, j + 1u, k + 1u);
-    float gx = 1.0 - fx;
-    float gy = 1.0 - fy;
-    float gz = 1.0 - fz;
-    float c00 = c000 * gx + c100 * fx;
-    float c10 = c010 * gx + c110 * fx;
-    float c01 = c001 * gx + c101 * fx;
-    float c11 = c011 * gx + c111 * fx;
-    float c0 = c00 * gy + c10 * fy;
-    float c1 = c01 * gy + c11 * fy;
-    float value = c0 * gz + c1 * fz;
+    vec4 low_corners = vec4(field_sample(c, i, j, k), field_sample(c, i + 1u, j, k),
+                            field_sample(c, i, j + 1u, k), field_sample(c, i + 1u, j + 1u, k));
+    vec4 high_corners = vec4(field_sample(c, i, j, k + 1u), field_sample(c, i + 1u, j, k + 1u),
+                             field_sample(c, i, j + 1u, k + 1u), field_sample(c, i + 1u, j + 1u, k + 1u));
+    vec3 fraction = vec3(q.x - float(i), q.y - float(j), q.z - float(k));
     vec3 outside = vec3(g.x - q.x, g.y - q.y, g.z - q.z) * cell;
-    float outside_length = sqrt(dot(outside, outside));
+    return FieldCell(low_corners, high_corners, fraction, outside);
+}
+
+// Trilinear in the cell: along x (c00, c10, c01, c11 for the four edges along x), then y, then z.
+vec4 field_edges(FieldCell f) {
+    float gx = 1.0 - f.fraction.x;
+    float fx = f.fraction.x;
+    return vec4(f.low.x * gx + f.low.y * fx, f.low.z * gx + f.low.w * fx,
+                f.high.x * gx + f.high.y * fx, f.high.z * gx + f.high.w * fx);
+}
+
+float field_value(FieldCell f, vec4 edges) {
+    float gy = 1.0 - f.fraction.y;
+    float fy = f.fraction.y;
+    float c0 = edges.x * gy + edges.y * fy;
+    float c1 = edges.z * gy + edges.w * fy;
+    return c0 * (1.0 - f.fraction.z) + c1 * f.fraction.z;
+}
+
+// A mesh: trilinear in its distance field, the normal the trilinear gradient (outside the field's
+// grid: the nearest grid point's φ plus the way there, the normal along that way), rotated back.
+Surface mesh_surface(vec3 x, Collider c, vec3 center) {
+    FieldCell f = field_cell(x, c, center);
+    vec4 edges = field_edges(f);
+    float value = field_value(f, edges);
+    float outside_length = sqrt(dot(f.outside, f.outside));
     vec3 n = vec3(0.0, 1.0, 0.0);
     float distance = value;
     if (outside_length > 0.0) {
-        n = outside * (1.0 / outside_length);
+        n = f.outside * (1.0 / outside_length);
         distance = value + outside_length;
     } else {
-        float dx = ((c100 - c000) * gy + (c110 - c010) * fy) * gz + ((c101 - c001) * gy + (c111 - c011) * fy) * fz;
-        float dy = ((c010 - c000) * gx + (c110 - c100) * fx) * gz + ((c011 - c001) * gx + (c111 - c101) * fx) * fz;
-        float dz = (c01 - c00) * gy + (c11 - c10) * fy;
+        float gx = 1.0 - f.fraction.x;
+        float gy = 1.0 - f.fraction.y;
+        float gz = 1.0 - f.fraction.z;
+        float fx = f.fraction.x;
+        float fy = f.fraction.y;
+        float fz = f.fraction.z;
+        // The trilinear function's gradient in the cell (per grid unit: the direction is all the
+        // normal needs).
+        float dx = ((f.low.y - f.low.x) * gy + (f.low.w - f.low.z) * fy) * gz
+            + ((f.high.y - f.high.x) * gy + (f.high.w - f.high.z) * fy) * fz;
+        float dy = ((f.low.z - f.low.x) * gx + (f.low.w - f.low.y) * fx) * gz
+            + ((f.high.z - f.high.x) * gx + (f.high.w - f.high.y) * fx) * fz;
+        float dz = (edges.z - edges.x) * gy + (edges.w - edges.y) * fy;
         vec3 gradient = vec3(dx, dy, dz);
         float len = sqrt(dot(gradient, gradient));
         if (len > 0.0) {
@@ -124,30 +153,42 @@ Surface mesh_surface(vec3 x, Collider c, vec3 center) {
     return Surface(distance, c.axis_x * n.x + c.axis_y * n.y + c.axis_z * n.z);
 }
 
+// Whether the scene has colliders of one kind only: then no collider's kind needs a test (an
+// expression of the COLLIDER_* constants, folded when the pipeline is specialised).
+bool one_collider_kind() {
+    return int(COLLIDER_SPHERE) + int(COLLIDER_PLANE) + int(COLLIDER_CAPSULE) + int(COLLIDER_BOX)
+        + int(COLLIDER_MESH) == 1;
+}
+
+// Whether collider c has `kind`, of the kinds compiled in.
+bool collider_is(Collider c, uint kind) {
+    return one_collider_kind() || c.kind == kind;
+}
+
 // The surface of collider c, its centre at `center`, seen from x.
 Surface collider_surface(Collider c, vec3 center, vec3 x) {
     if (COLLIDER_SPHERE) {
-        if (c.kind == 0u) {
+        if (collider_is(c, 0u)) {
             return sphere_surface(x, center, c.radius);
         }
     }
     if (COLLIDER_PLANE) {
-        if (c.kind == 1u) {
+        if (collider_is(c, 1u)) {
             return plane_surface(x, center, c.axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
-        if (c.kind == 2u) {
+        if (collider_is(c, 2u)) {
             return capsule_surface(x, center, c.axis_x, c.extent.x, c.radius, c.axis_y);
         }
     }
     if (COLLIDER_BOX) {
-        if (c.kind == 3u) {
+        if (collider_is(c, 3u)) {
             return box_surface(x, c, center);
         }
     }
     if (COLLIDER_MESH) {
-        if (c.kind == 4u) {
+        if (collider_is(c, 4u)) {
             return mesh_surface(x, c, center);
         }
     }
@@ -187,30 +228,9 @@ float box_distance(vec3 x, Collider c, vec3 center) {
 }
 
 float mesh_distance(vec3 x, Collider c, vec3 center) {
-    vec3 d = x - center;
-    vec3 p = vec3(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
-    float cell = c.radius;
-    vec3 g = (p - c.extent) * (1.0 / cell);
-    vec3 high = vec3(float(c.field_dims.x - 1u), float(c.field_dims.y - 1u), float(c.field_dims.z - 1u));
-    vec3 q = vec3(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
-    uint i = min(uint(floor(q.x)), c.field_dims.x - 2u);
-    uint j = min(uint(floor(q.y)), c.field_dims.y - 2u);
-    uint k = min(uint(floor(q.z)), c.field_dims.z - 2u);
-    float fx = q.x - float(i);
-    float fy = q.y - float(j);
-    float fz = q.z - float(k);
-    float gx = 1.0 - fx;
-    float gy = 1.0 - fy;
-    float gz = 1.0 - fz;
-    float c00 = field_sample(c, i, j, k) * gx + field_sample(c, i + 1u, j, k) * fx;
-    float c10 = field_sample(c, i, j + 1u, k) * gx + field_sample(c, i + 1u, j + 1u, k) * fx;
-    float c01 = field_sample(c, i, j, k + 1u) * gx + field_sample(c, i + 1u, j, k + 1u) * fx;
-    float c11 = field_sample(c, i, j + 1u, k + 1u) * gx + field_sample(c, i + 1u, j + 1u, k + 1u) * fx;
-    float c0 = c00 * gy + c10 * fy;
-    float c1 = c01 * gy + c11 * fy;
-    float value = c0 * gz + c1 * fz;
-    vec3 outside = vec3(g.x - q.x, g.y - q.y, g.z - q.z) * cell;
-    float outside_length = sqrt(dot(outside, outside));
+    FieldCell f = field_cell(x, c, center);
+    float value = field_value(f, field_edges(f));
+    float outside_length = sqrt(dot(f.outside, f.outside));
     if (outside_length > 0.0) {
         return value + outside_length;
     }
@@ -220,29 +240,51 @@ float mesh_distance(vec3 x, Collider c, vec3 center) {
 // The signed distance of collider c, its centre at `center`, at x.
 float collider_distance(Collider c, vec3 center, vec3 x) {
     if (COLLIDER_SPHERE) {
-        if (c.kind == 0u) {
+        if (collider_is(c, 0u)) {
             return sphere_distance(x, center, c.radius);
         }
     }
     if (COLLIDER_PLANE) {
-        if (c.kind == 1u) {
+        if (collider_is(c, 1u)) {
             return dot(x - center, c.axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
-        if (c.kind == 2u) {
+        if (collider_is(c, 2u)) {
             return capsule_distance(x, center, c.axis_x, c.extent.x, c.radius);
         }
     }
     if (COLLIDER_BOX) {
-        if (c.kind == 3u) {
+        if (collider_is(c, 3u)) {
             return box_distance(x, c, center);
         }
     }
     if (COLLIDER_MESH) {
-        if (c.kind == 4u) {
+        if (collider_is(c, 4u)) {
             return mesh_distance(x, c, center);
         }
     }
     return 3.0e38;
+}
+
+// The surface for the contact forces: the signed distance, and the normal only where x is inside
+// (φ < 0; elsewhere +Y, which no force uses). A sphere's one square root gives both; the other
+// kinds test the distance alone first.
+Surface collider_contact(Collider c, vec3 center, vec3 x) {
+    if (COLLIDER_SPHERE) {
+        if (collider_is(c, 0u)) {
+            vec3 offset = x - center;
+            float distance = sqrt(dot(offset, offset));
+            vec3 normal = vec3(0.0, 1.0, 0.0);
+            if (distance < c.radius && distance > 0.0) {
+                normal = offset * (1.0 / distance);
+            }
+            return Surface(distance - c.radius, normal);
+        }
+    }
+    float distance = collider_distance(c, center, x);
+    if (distance >= 0.0) {
+        return Surface(distance, vec3(0.0, 1.0, 0.0));
+    }
+    return collider_surface(c, center, x);
 }

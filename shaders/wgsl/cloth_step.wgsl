@@ -233,11 +233,11 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
                 let collider = colliders[s];
                 let center = collider_center(collider, t);
                 // The normal only for a vertex inside: outside, the distance alone.
-                if (collider_distance(collider, center, x) >= 0.0) {
+                let surface = collider_contact(collider, center, x);
+                if (surface.distance >= 0.0) {
                     continue;
                 }
                 let v_rel = v - collider_velocity(collider, t);
-                let surface = collider_surface(collider, center, x);
                 let c = contact_force(v_rel, surface, collider.stiffness, collider.damping);
                 if (c.hit) {
                     force += c.force;

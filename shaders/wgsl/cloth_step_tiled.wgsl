@@ -177,11 +177,11 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
                         let collider = colliders[n];
                         let center = collider_center(collider, t);
                         // The normal only for a vertex inside: outside, the distance alone.
-                        if (collider_distance(collider, center, x) >= 0.0) {
+                        let surface = collider_contact(collider, center, x);
+                        if (surface.distance >= 0.0) {
                             continue;
                         }
                         let v_rel = v - collider_velocity(collider, t);
-                        let surface = collider_surface(collider, center, x);
                         let contact = contact_force(v_rel, surface, collider.stiffness, collider.damping);
                         if (contact.hit) {
                             force += contact.force;

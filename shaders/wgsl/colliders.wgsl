@@ -81,50 +81,79 @@ fn field_sample(c: Collider, i: u32, j: u32, k: u32) -> f32 {
     return distance_fields[c.field_first + i + c.field_dims.x * (j + c.field_dims.y * k)];
 }
 
-// A mesh: trilinear in its distance field at p = Rᵀ(x − c), the normal the trilinear gradient
-// (outside the field's grid: the nearest grid point's φ plus the way there), rotated back.
-fn mesh_surface(x: vec3<f32>, c: Collider, center: vec3<f32>) -> Surface {
+// The cell of a mesh's distance field around p = Rᵀ(x − c) (cloth_core::mesh::FieldCell): its
+// eight samples (c000, c100, c010, c110 in `low`, the same at k + 1 in `high`), the fractions of
+// the way across it, and `outside`, the way (m) from the nearest grid point when x is outside the
+// grid (zero inside).
+struct FieldCell {
+    low: vec4<f32>,
+    high: vec4<f32>,
+    fraction: vec3<f32>,
+    outside: vec3<f32>,
+}
+
+fn field_cell(x: vec3<f32>, c: Collider, center: vec3<f32>) -> FieldCell {
     let d = x - center;
     let p = vec3<f32>(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
     let cell = c.radius;
     let g = (p - c.extent) * (1.0 / cell);
     let high = vec3<f32>(f32(c.field_dims.x - 1u), f32(c.field_dims.y - 1u), f32(c.field_dims.z - 1u));
     let q = vec3<f32>(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
+    // The cell's lowest corner: at most the last but one point, so the cell exists.
     let i = min(u32(floor(q.x)), c.field_dims.x - 2u);
     let j = min(u32(floor(q.y)), c.field_dims.y - 2u);
     let k = min(u32(floor(q.z)), c.field_dims.z - 2u);
-    let fx = q.x - f32(i);
-    let fy = q.y - f32(j);
-    let fz = q.z - f32(k);
-    let c000 = field_sample(c, i, j, k);
-    let c100 = field_sample(c, i + 1u, j, k);
-    let c010 = field_sample(c, i, j + 1u, k);
-    let c110 = field_sample(c, i + 1u, j + 1u, k);
-    let c001 = field_sample(c, i, j, k + 1u);
-    let c101 = field_sample(c, i + 1u, j, k + 1u);
-    let c011 = field_sample(c, i, j + 1u, k + 1u);
-    let c111 = field_sample(c, i + 1u, j + 1u, k + 1u);
-    let gx = 1.0 - fx;
-    let gy = 1.0 - fy;
-    let gz = 1.0 - fz;
-    let c00 = c000 * gx + c100 * fx;
-    let c10 = c010 * gx + c110 * fx;
-    let c01 = c001 * gx + c101 * fx;
-    let c11 = c011 * gx + c111 * fx;
-    let c0 = c00 * gy + c10 * fy;
-    let c1 = c01 * gy + c11 * fy;
-    let value = c0 * gz + c1 * fz;
+    let low_corners = vec4<f32>(field_sample(c, i, j, k), field_sample(c, i + 1u, j, k),
+                                field_sample(c, i, j + 1u, k), field_sample(c, i + 1u, j + 1u, k));
+    let high_corners = vec4<f32>(field_sample(c, i, j, k + 1u), field_sample(c, i + 1u, j, k + 1u),
+                                 field_sample(c, i, j + 1u, k + 1u), field_sample(c, i + 1u, j + 1u, k + 1u));
+    let fraction = vec3<f32>(q.x - f32(i), q.y - f32(j), q.z - f32(k));
     let outside = vec3<f32>(g.x - q.x, g.y - q.y, g.z - q.z) * cell;
-    let outside_length = sqrt(dot(outside, outside));
+    return FieldCell(low_corners, high_corners, fraction, outside);
+}
+
+// Trilinear in the cell: along x (c00, c10, c01, c11 for the four edges along x), then y, then z.
+fn field_edges(f: FieldCell) -> vec4<f32> {
+    let gx = 1.0 - f.fraction.x;
+    let fx = f.fraction.x;
+    return vec4<f32>(f.low.x * gx + f.low.y * fx, f.low.z * gx + f.low.w * fx,
+                     f.high.x * gx + f.high.y * fx, f.high.z * gx + f.high.w * fx);
+}
+
+fn field_value(f: FieldCell, edges: vec4<f32>) -> f32 {
+    let gy = 1.0 - f.fraction.y;
+    let fy = f.fraction.y;
+    let c0 = edges.x * gy + edges.y * fy;
+    let c1 = edges.z * gy + edges.w * fy;
+    return c0 * (1.0 - f.fraction.z) + c1 * f.fraction.z;
+}
+
+// A mesh: trilinear in its distance field, the normal the trilinear gradient (outside the field's
+// grid: the nearest grid point's φ plus the way there, the normal along that way), rotated back.
+fn mesh_surface(x: vec3<f32>, c: Collider, center: vec3<f32>) -> Surface {
+    let f = field_cell(x, c, center);
+    let edges = field_edges(f);
+    let value = field_value(f, edges);
+    let outside_length = sqrt(dot(f.outside, f.outside));
     var n = vec3<f32>(0.0, 1.0, 0.0);
     var distance = value;
     if (outside_length > 0.0) {
-        n = outside * (1.0 / outside_length);
+        n = f.outside * (1.0 / outside_length);
         distance = value + outside_length;
     } else {
-        let dx = ((c100 - c000) * gy + (c110 - c010) * fy) * gz + ((c101 - c001) * gy + (c111 - c011) * fy) * fz;
-        let dy = ((c010 - c000) * gx + (c110 - c100) * fx) * gz + ((c011 - c001) * gx + (c111 - c101) * fx) * fz;
-        let dz = (c01 - c00) * gy + (c11 - c10) * fy;
+        let gx = 1.0 - f.fraction.x;
+        let gy = 1.0 - f.fraction.y;
+        let gz = 1.0 - f.fraction.z;
+        let fx = f.fraction.x;
+        let fy = f.fraction.y;
+        let fz = f.fraction.z;
+        // The trilinear function's gradient in the cell (per grid unit: the direction is all the
+        // normal needs).
+        let dx = ((f.low.y - f.low.x) * gy + (f.low.w - f.low.z) * fy) * gz
+            + ((f.high.y - f.high.x) * gy + (f.high.w - f.high.z) * fy) * fz;
+        let dy = ((f.low.z - f.low.x) * gx + (f.low.w - f.low.y) * fx) * gz
+            + ((f.high.z - f.high.x) * gx + (f.high.w - f.high.y) * fx) * fz;
+        let dz = (edges.z - edges.x) * gy + (edges.w - edges.y) * fy;
         let gradient = vec3<f32>(dx, dy, dz);
         let len = sqrt(dot(gradient, gradient));
         if (len > 0.0) {
@@ -134,30 +163,42 @@ fn mesh_surface(x: vec3<f32>, c: Collider, center: vec3<f32>) -> Surface {
     return Surface(distance, c.axis_x * n.x + c.axis_y * n.y + c.axis_z * n.z);
 }
 
+// Whether the scene has colliders of one kind only: then no collider's kind needs a test (a
+// constant expression of the COLLIDER_* constants, folded when the pipeline is built).
+fn one_collider_kind() -> bool {
+    return u32(COLLIDER_SPHERE) + u32(COLLIDER_PLANE) + u32(COLLIDER_CAPSULE) + u32(COLLIDER_BOX)
+        + u32(COLLIDER_MESH) == 1u;
+}
+
+// Whether collider c has `kind`, of the kinds compiled in.
+fn collider_is(c: Collider, kind: u32) -> bool {
+    return one_collider_kind() || c.kind == kind;
+}
+
 // The surface of collider c, its centre at `center`, seen from x.
 fn collider_surface(c: Collider, center: vec3<f32>, x: vec3<f32>) -> Surface {
     if (COLLIDER_SPHERE) {
-        if (c.kind == 0u) {
+        if (collider_is(c, 0u)) {
             return sphere_surface(x, center, c.radius);
         }
     }
     if (COLLIDER_PLANE) {
-        if (c.kind == 1u) {
+        if (collider_is(c, 1u)) {
             return plane_surface(x, center, c.axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
-        if (c.kind == 2u) {
+        if (collider_is(c, 2u)) {
             return capsule_surface(x, center, c.axis_x, c.extent.x, c.radius, c.axis_y);
         }
     }
     if (COLLIDER_BOX) {
-        if (c.kind == 3u) {
+        if (collider_is(c, 3u)) {
             return box_surface(x, c, center);
         }
     }
     if (COLLIDER_MESH) {
-        if (c.kind == 4u) {
+        if (collider_is(c, 4u)) {
             return mesh_surface(x, c, center);
         }
     }
@@ -197,30 +238,9 @@ fn box_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
 }
 
 fn mesh_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
-    let d = x - center;
-    let p = vec3<f32>(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
-    let cell = c.radius;
-    let g = (p - c.extent) * (1.0 / cell);
-    let high = vec3<f32>(f32(c.field_dims.x - 1u), f32(c.field_dims.y - 1u), f32(c.field_dims.z - 1u));
-    let q = vec3<f32>(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
-    let i = min(u32(floor(q.x)), c.field_dims.x - 2u);
-    let j = min(u32(floor(q.y)), c.field_dims.y - 2u);
-    let k = min(u32(floor(q.z)), c.field_dims.z - 2u);
-    let fx = q.x - f32(i);
-    let fy = q.y - f32(j);
-    let fz = q.z - f32(k);
-    let gx = 1.0 - fx;
-    let gy = 1.0 - fy;
-    let gz = 1.0 - fz;
-    let c00 = field_sample(c, i, j, k) * gx + field_sample(c, i + 1u, j, k) * fx;
-    let c10 = field_sample(c, i, j + 1u, k) * gx + field_sample(c, i + 1u, j + 1u, k) * fx;
-    let c01 = field_sample(c, i, j, k + 1u) * gx + field_sample(c, i + 1u, j, k + 1u) * fx;
-    let c11 = field_sample(c, i, j + 1u, k + 1u) * gx + field_sample(c, i + 1u, j + 1u, k + 1u) * fx;
-    let c0 = c00 * gy + c10 * fy;
-    let c1 = c01 * gy + c11 * fy;
-    let value = c0 * gz + c1 * fz;
-    let outside = vec3<f32>(g.x - q.x, g.y - q.y, g.z - q.z) * cell;
-    let outside_length = sqrt(dot(outside, outside));
+    let f = field_cell(x, c, center);
+    let value = field_value(f, field_edges(f));
+    let outside_length = sqrt(dot(f.outside, f.outside));
     if (outside_length > 0.0) {
         return value + outside_length;
     }
@@ -230,29 +250,51 @@ fn mesh_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
 // The signed distance of collider c, its centre at `center`, at x.
 fn collider_distance(c: Collider, center: vec3<f32>, x: vec3<f32>) -> f32 {
     if (COLLIDER_SPHERE) {
-        if (c.kind == 0u) {
+        if (collider_is(c, 0u)) {
             return sphere_distance(x, center, c.radius);
         }
     }
     if (COLLIDER_PLANE) {
-        if (c.kind == 1u) {
+        if (collider_is(c, 1u)) {
             return dot(x - center, c.axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
-        if (c.kind == 2u) {
+        if (collider_is(c, 2u)) {
             return capsule_distance(x, center, c.axis_x, c.extent.x, c.radius);
         }
     }
     if (COLLIDER_BOX) {
-        if (c.kind == 3u) {
+        if (collider_is(c, 3u)) {
             return box_distance(x, c, center);
         }
     }
     if (COLLIDER_MESH) {
-        if (c.kind == 4u) {
+        if (collider_is(c, 4u)) {
             return mesh_distance(x, c, center);
         }
     }
     return 3.0e38;
+}
+
+// The surface for the contact forces: the signed distance, and the normal only where x is inside
+// (φ < 0; elsewhere +Y, which no force uses). A sphere's one square root gives both; the other
+// kinds test the distance alone first.
+fn collider_contact(c: Collider, center: vec3<f32>, x: vec3<f32>) -> Surface {
+    if (COLLIDER_SPHERE) {
+        if (collider_is(c, 0u)) {
+            let offset = x - center;
+            let distance = sqrt(dot(offset, offset));
+            var normal = vec3<f32>(0.0, 1.0, 0.0);
+            if (distance < c.radius && distance > 0.0) {
+                normal = offset * (1.0 / distance);
+            }
+            return Surface(distance - c.radius, normal);
+        }
+    }
+    let distance = collider_distance(c, center, x);
+    if (distance >= 0.0) {
+        return Surface(distance, vec3<f32>(0.0, 1.0, 0.0));
+    }
+    return collider_surface(c, center, x);
 }

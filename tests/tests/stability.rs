@@ -549,8 +549,7 @@ fn cloth_falls_onto_a_mesh(backend: &Backend) {
     });
 }
 
-/// `scenes/heap.ron` at 32 × 32 (from this size up a wave of its starting ripple spans enough
-/// vertices for the folds to cross), 1 s: without self-collision the cloth passes through
+/// `scenes/heap.ron` at 32 × 32, 1 s: without self-collision the cloth passes through
 /// itself, and the counter sees it: more than 0 edge–triangle crossings in some frame (counted
 /// every 10 frames and at the end). Proof that the counter counts what it should; no bound is
 /// claimed on how many.

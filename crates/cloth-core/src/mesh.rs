@@ -337,40 +337,10 @@ impl DistanceField {
         Ok(Self { origin, cell, dims, samples, mesh })
     }
 
-    /// [`Self::surface`]'s distance alone, by the same operations.
-    pub fn distance<R: Real>(&self, p: Vec3<R>) -> R {
-        let cell = R::of(self.cell);
-        let origin = Vec3::from_f64(self.origin);
-        let g = (p - origin) * (R::one() / cell);
-        let high = self.dims.map(|d| R::of((d - 1) as f64));
-        let clamp = |x: R, hi: R| x.max(R::zero()).min(hi);
-        let q = [clamp(g.x, high[0]), clamp(g.y, high[1]), clamp(g.z, high[2])];
-        let corner = |x: R, d: u32| x.floor().to_f64_lossy().min((d - 2) as f64) as u32;
-        let (i, j, k) = (corner(q[0], self.dims[0]), corner(q[1], self.dims[1]), corner(q[2], self.dims[2]));
-        let (fx, fy, fz) = (q[0] - R::of(i as f64), q[1] - R::of(j as f64), q[2] - R::of(k as f64));
-        let [nx, ny, _] = self.dims;
-        let at = |di: u32, dj: u32, dk: u32| {
-            R::of(self.samples[((i + di) + nx * ((j + dj) + ny * (k + dk))) as usize] as f64)
-        };
-        let one = R::one();
-        let (gx, gy, gz) = (one - fx, one - fy, one - fz);
-        let c00 = at(0, 0, 0) * gx + at(1, 0, 0) * fx;
-        let c10 = at(0, 1, 0) * gx + at(1, 1, 0) * fx;
-        let c01 = at(0, 0, 1) * gx + at(1, 0, 1) * fx;
-        let c11 = at(0, 1, 1) * gx + at(1, 1, 1) * fx;
-        let c0 = c00 * gy + c10 * fy;
-        let c1 = c01 * gy + c11 * fy;
-        let value = c0 * gz + c1 * fz;
-        let outside = Vec3::new(g.x - q[0], g.y - q[1], g.z - q[2]) * cell;
-        let outside_length = outside.dot(outside).sqrt();
-        if outside_length > R::zero() { value + outside_length } else { value }
-    }
-
-    /// The surface seen from `p`, a point in the mesh's coordinates: `φ` trilinear between the
-    /// eight samples around it, the normal the normalised gradient of that trilinear function (`+Y`
-    /// where it vanishes). Outside the grid, `φ` at the nearest grid point plus the distance to it,
-    /// the normal pointing from it.
-    pub fn surface<R: Real>(&self, p: Vec3<R>) -> Surface<R> {
+    /// The cell of the grid around `p`, a point in the mesh's coordinates: its eight samples, the
+    /// fractions of the way across it, and, for a point outside the grid, the way (m) from the
+    /// nearest grid point (zero inside).
+    fn cell<R: Real>(&self, p: Vec3<R>) -> FieldCell<R> {
         let cell = R::of(self.cell);
         let origin = Vec3::from_f64(self.origin);
         let g = (p - origin) * (R::one() / cell);
@@ -380,28 +350,44 @@ impl DistanceField {
         // The cell's lowest corner: at most the last but one point, so the cell exists.
         let corner = |x: R, d: u32| x.floor().to_f64_lossy().min((d - 2) as f64) as u32;
         let (i, j, k) = (corner(q[0], self.dims[0]), corner(q[1], self.dims[1]), corner(q[2], self.dims[2]));
-        let (fx, fy, fz) = (q[0] - R::of(i as f64), q[1] - R::of(j as f64), q[2] - R::of(k as f64));
         let [nx, ny, _] = self.dims;
         let at = |di: u32, dj: u32, dk: u32| {
             R::of(self.samples[((i + di) + nx * ((j + dj) + ny * (k + dk))) as usize] as f64)
         };
-        let (c000, c100, c010, c110) = (at(0, 0, 0), at(1, 0, 0), at(0, 1, 0), at(1, 1, 0));
-        let (c001, c101, c011, c111) = (at(0, 0, 1), at(1, 0, 1), at(0, 1, 1), at(1, 1, 1));
-        let one = R::one();
-        let (gx, gy, gz) = (one - fx, one - fy, one - fz);
-        // Trilinear: along x, then y, then z.
-        let c00 = c000 * gx + c100 * fx;
-        let c10 = c010 * gx + c110 * fx;
-        let c01 = c001 * gx + c101 * fx;
-        let c11 = c011 * gx + c111 * fx;
-        let c0 = c00 * gy + c10 * fy;
-        let c1 = c01 * gy + c11 * fy;
-        let value = c0 * gz + c1 * fz;
-        let outside = Vec3::new(g.x - q[0], g.y - q[1], g.z - q[2]) * cell;
-        let outside_length = outside.dot(outside).sqrt();
-        if outside_length > R::zero() {
-            return Surface { distance: value + outside_length, normal: outside * (one / outside_length) };
+        FieldCell {
+            low: [at(0, 0, 0), at(1, 0, 0), at(0, 1, 0), at(1, 1, 0)],
+            high: [at(0, 0, 1), at(1, 0, 1), at(0, 1, 1), at(1, 1, 1)],
+            fraction: [q[0] - R::of(i as f64), q[1] - R::of(j as f64), q[2] - R::of(k as f64)],
+            outside: Vec3::new(g.x - q[0], g.y - q[1], g.z - q[2]) * cell,
         }
+    }
+
+    /// [`Self::surface`]'s distance alone, by the same operations.
+    pub fn distance<R: Real>(&self, p: Vec3<R>) -> R {
+        let f = self.cell(p);
+        let value = f.value(f.edges());
+        let outside_length = f.outside.dot(f.outside).sqrt();
+        if outside_length > R::zero() { value + outside_length } else { value }
+    }
+
+    /// The surface seen from `p`, a point in the mesh's coordinates: `φ` trilinear between the
+    /// eight samples around it, the normal the normalised gradient of that trilinear function (`+Y`
+    /// where it vanishes). Outside the grid, `φ` at the nearest grid point plus the distance to it,
+    /// the normal pointing from it.
+    pub fn surface<R: Real>(&self, p: Vec3<R>) -> Surface<R> {
+        let f = self.cell(p);
+        let edges = f.edges();
+        let value = f.value(edges);
+        let one = R::one();
+        let outside_length = f.outside.dot(f.outside).sqrt();
+        if outside_length > R::zero() {
+            return Surface { distance: value + outside_length, normal: f.outside * (one / outside_length) };
+        }
+        let [c000, c100, c010, c110] = f.low;
+        let [c001, c101, c011, c111] = f.high;
+        let [c00, c10, c01, c11] = edges;
+        let [fx, fy, fz] = f.fraction;
+        let (gx, gy, gz) = (one - fx, one - fy, one - fz);
         // The trilinear function's gradient in the cell (per grid unit; the direction is all the
         // normal needs).
         let dx = ((c100 - c000) * gy + (c110 - c010) * fy) * gz + ((c101 - c001) * gy + (c111 - c011) * fy) * fz;
@@ -411,6 +397,40 @@ impl DistanceField {
         let len = gradient.dot(gradient).sqrt();
         let normal = if len > R::zero() { gradient * (one / len) } else { Vec3::new(R::zero(), one, R::zero()) };
         Surface { distance: value, normal }
+    }
+}
+
+/// The cell of a distance field around a point (`DistanceField::cell`): the samples at its
+/// corners `[c000, c100, c010, c110]` and, one layer up in z, `high` the same; the fractions of the
+/// way across it along x, y, z; and `outside`, the way (m) from the nearest grid point to a point
+/// outside the grid (zero inside). The shaders' `FieldCell` is the same.
+struct FieldCell<R> {
+    low: [R; 4],
+    high: [R; 4],
+    fraction: [R; 3],
+    outside: Vec3<R>,
+}
+
+impl<R: Real> FieldCell<R> {
+    /// Trilinear interpolation's first pass, along x: the four edges `[c00, c10, c01, c11]`.
+    fn edges(&self) -> [R; 4] {
+        let fx = self.fraction[0];
+        let gx = R::one() - fx;
+        [
+            self.low[0] * gx + self.low[1] * fx,
+            self.low[2] * gx + self.low[3] * fx,
+            self.high[0] * gx + self.high[1] * fx,
+            self.high[2] * gx + self.high[3] * fx,
+        ]
+    }
+
+    /// The rest of it, along y, then z.
+    fn value(&self, [c00, c10, c01, c11]: [R; 4]) -> R {
+        let [_, fy, fz] = self.fraction;
+        let gy = R::one() - fy;
+        let c0 = c00 * gy + c10 * fy;
+        let c1 = c01 * gy + c11 * fy;
+        c0 * (R::one() - fz) + c1 * fz
     }
 }
 
