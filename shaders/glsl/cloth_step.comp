@@ -229,23 +229,22 @@ void main() {
         vec3 stick_normal = vec3(0.0);
         if (EFFECT_CONTACT) {
             for (uint s = 0u; s < params.collider_count; s++) {
-                Collider collider = colliders[s];
-                vec3 center = collider_center(collider, t);
+                vec3 center = collider_center(s, t);
                 // The normal only for a vertex inside: outside, the distance alone.
-                Surface surface = collider_contact(collider, center, x);
+                Surface surface = collider_contact(s, center, x);
                 if (surface.distance >= 0.0) {
                     continue;
                 }
-                vec3 v_rel = v - collider_velocity(collider, t);
+                vec3 v_rel = v - collider_velocity(s, t);
                 vec3 normal;
                 vec3 contact;
-                if (contact_force(v_rel, surface, collider.stiffness,
-                                  collider.damping, normal, contact)) {
+                if (contact_force(v_rel, surface, colliders[s].stiffness,
+                                  colliders[s].damping, normal, contact)) {
                     force += contact;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v_rel, normal, mass, friction_dt, collider.friction);
+                        force += friction_force(other_forces, v_rel, normal, mass, friction_dt, colliders[s].friction);
                         if (STAGE == 6u && !stuck
-                            && friction_holds(other_forces, v_rel, normal, mass, friction_dt, collider.friction)) {
+                            && friction_holds(other_forces, v_rel, normal, mass, friction_dt, colliders[s].friction)) {
                             stuck = true;
                             stick_normal = normal;
                         }
@@ -322,8 +321,7 @@ void main() {
         if (STAGE == 0u || STAGE == 1u || STAGE == 6u) {
             float deepest = 0.0;
             for (uint s = 0u; s < params.collider_count; s++) {
-                Collider collider = colliders[s];
-                deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
+                deepest = max(deepest, -collider_distance(s, collider_center(s, t_out), x_new));
             }
             if (deepest > 0.0) {
                 atomicMax(max_penetration_bits, floatBitsToUint(deepest));

@@ -171,21 +171,20 @@ void main() {
                 vec3 other_forces = force;
                 if (EFFECT_CONTACT) {
                     for (uint n = 0u; n < params.collider_count; n++) {
-                        Collider collider = colliders[n];
-                        vec3 center = collider_center(collider, t);
+                        vec3 center = collider_center(n, t);
                         // The normal only for a vertex inside: outside, the distance alone.
-                        Surface surface = collider_contact(collider, center, x);
+                        Surface surface = collider_contact(n, center, x);
                         if (surface.distance >= 0.0) {
                             continue;
                         }
-                        vec3 v_rel = v - collider_velocity(collider, t);
+                        vec3 v_rel = v - collider_velocity(n, t);
                         vec3 normal;
                         vec3 contact;
-                        if (contact_force(v_rel, surface, collider.stiffness,
-                                  collider.damping, normal, contact)) {
+                        if (contact_force(v_rel, surface, colliders[n].stiffness,
+                                  colliders[n].damping, normal, contact)) {
                             force += contact;
                             if (EFFECT_FRICTION) {
-                                force += friction_force(other_forces, v_rel, normal, mass, dt, collider.friction);
+                                force += friction_force(other_forces, v_rel, normal, mass, dt, colliders[n].friction);
                             }
                         }
                     }
@@ -203,8 +202,7 @@ void main() {
             if (EFFECT_CONTACT) {
                 if (is_output) {
                     for (uint n = 0u; n < params.collider_count; n++) {
-                        Collider collider = colliders[n];
-                        deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
+                        deepest = max(deepest, -collider_distance(n, collider_center(n, t_out), x_new));
                     }
                 }
             }

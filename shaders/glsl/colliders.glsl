@@ -3,7 +3,9 @@
 // from a point x: its signed distance φ (m, negative inside) and outward unit normal. A kind no
 // collider of the scene has is compiled out (the COLLIDER_* specialization constants of
 // effects.glsl). Each kernel declares `distance_fields`, the mesh colliders' samples, at its own
-// binding.
+// binding (layout.glsl declares `colliders`). A collider `c` is its index in `colliders`: each
+// function reads the fields it needs from the buffer, so a kernel loads no more of a collider
+// than its kind uses.
 
 struct Surface {
     float distance;
@@ -43,32 +45,32 @@ float sign_of(float v) {
 }
 
 // A rounded box: p = Rᵀ(x − c), q = |p| − e, φ = |max(q, 0)| + min(max_k q_k, 0) − ρ.
-Surface box_surface(vec3 x, Collider c, vec3 center) {
+Surface box_surface(vec3 x, uint c, vec3 center) {
     vec3 d = x - center;
-    vec3 p = vec3(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
-    vec3 q = vec3(abs(p.x) - c.extent.x, abs(p.y) - c.extent.y, abs(p.z) - c.extent.z);
+    vec3 p = vec3(dot(d, colliders[c].axis_x), dot(d, colliders[c].axis_y), dot(d, colliders[c].axis_z));
+    vec3 q = vec3(abs(p.x) - colliders[c].extent.x, abs(p.y) - colliders[c].extent.y, abs(p.z) - colliders[c].extent.z);
     vec3 outside = vec3(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
     float outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
     if (outside_length > 0.0) {
         float scale = 1.0 / outside_length;
         vec3 local_ = vec3(sign_of(p.x) * outside.x * scale, sign_of(p.y) * outside.y * scale,
                            sign_of(p.z) * outside.z * scale);
-        vec3 normal = c.axis_x * local_.x + c.axis_y * local_.y + c.axis_z * local_.z;
-        return Surface(outside_length - c.radius, normal);
+        vec3 normal = colliders[c].axis_x * local_.x + colliders[c].axis_y * local_.y + colliders[c].axis_z * local_.z;
+        return Surface(outside_length - colliders[c].radius, normal);
     }
     // Inside the core box: the nearest face is the axis of the largest q (ties to the first).
     if (q.x >= q.y && q.x >= q.z) {
-        return Surface(q.x - c.radius, c.axis_x * sign_of(p.x));
+        return Surface(q.x - colliders[c].radius, colliders[c].axis_x * sign_of(p.x));
     }
     if (q.y >= q.z) {
-        return Surface(q.y - c.radius, c.axis_y * sign_of(p.y));
+        return Surface(q.y - colliders[c].radius, colliders[c].axis_y * sign_of(p.y));
     }
-    return Surface(q.z - c.radius, c.axis_z * sign_of(p.z));
+    return Surface(q.z - colliders[c].radius, colliders[c].axis_z * sign_of(p.z));
 }
 
 // A mesh's distance field, sample (i, j, k) (cloth_core::mesh::DistanceField).
-float field_sample(Collider c, uint i, uint j, uint k) {
-    return distance_fields[c.field_first + i + c.field_dims.x * (j + c.field_dims.y * k)];
+float field_sample(uint c, uint i, uint j, uint k) {
+    return distance_fields[colliders[c].field_first + i + colliders[c].field_dims.x * (j + colliders[c].field_dims.y * k)];
 }
 
 // The cell of a mesh's distance field around p = Rᵀ(x − c) (cloth_core::mesh::FieldCell): its
@@ -82,17 +84,17 @@ struct FieldCell {
     vec3 outside;
 };
 
-FieldCell field_cell(vec3 x, Collider c, vec3 center) {
+FieldCell field_cell(vec3 x, uint c, vec3 center) {
     vec3 d = x - center;
-    vec3 p = vec3(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
-    float cell = c.radius;
-    vec3 g = (p - c.extent) * (1.0 / cell);
-    vec3 high = vec3(float(c.field_dims.x - 1u), float(c.field_dims.y - 1u), float(c.field_dims.z - 1u));
+    vec3 p = vec3(dot(d, colliders[c].axis_x), dot(d, colliders[c].axis_y), dot(d, colliders[c].axis_z));
+    float cell = colliders[c].radius;
+    vec3 g = (p - colliders[c].extent) * (1.0 / cell);
+    vec3 high = vec3(float(colliders[c].field_dims.x - 1u), float(colliders[c].field_dims.y - 1u), float(colliders[c].field_dims.z - 1u));
     vec3 q = vec3(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
     // The cell's lowest corner: at most the last but one point, so the cell exists.
-    uint i = min(uint(floor(q.x)), c.field_dims.x - 2u);
-    uint j = min(uint(floor(q.y)), c.field_dims.y - 2u);
-    uint k = min(uint(floor(q.z)), c.field_dims.z - 2u);
+    uint i = min(uint(floor(q.x)), colliders[c].field_dims.x - 2u);
+    uint j = min(uint(floor(q.y)), colliders[c].field_dims.y - 2u);
+    uint k = min(uint(floor(q.z)), colliders[c].field_dims.z - 2u);
     vec4 low_corners = vec4(field_sample(c, i, j, k), field_sample(c, i + 1u, j, k),
                             field_sample(c, i, j + 1u, k), field_sample(c, i + 1u, j + 1u, k));
     vec4 high_corners = vec4(field_sample(c, i, j, k + 1u), field_sample(c, i + 1u, j, k + 1u),
@@ -120,7 +122,7 @@ float field_value(FieldCell f, vec4 edges) {
 
 // A mesh: trilinear in its distance field, the normal the trilinear gradient (outside the field's
 // grid: the nearest grid point's φ plus the way there, the normal along that way), rotated back.
-Surface mesh_surface(vec3 x, Collider c, vec3 center) {
+Surface mesh_surface(vec3 x, uint c, vec3 center) {
     FieldCell f = field_cell(x, c, center);
     vec4 edges = field_edges(f);
     float value = field_value(f, edges);
@@ -150,7 +152,7 @@ Surface mesh_surface(vec3 x, Collider c, vec3 center) {
             n = gradient * (1.0 / len);
         }
     }
-    return Surface(distance, c.axis_x * n.x + c.axis_y * n.y + c.axis_z * n.z);
+    return Surface(distance, colliders[c].axis_x * n.x + colliders[c].axis_y * n.y + colliders[c].axis_z * n.z);
 }
 
 // Whether the scene has colliders of one kind only: then no collider's kind needs a test (an
@@ -161,25 +163,25 @@ bool one_collider_kind() {
 }
 
 // Whether collider c has `kind`, of the kinds compiled in.
-bool collider_is(Collider c, uint kind) {
-    return one_collider_kind() || c.kind == kind;
+bool collider_is(uint c, uint kind) {
+    return one_collider_kind() || colliders[c].kind == kind;
 }
 
 // The surface of collider c, its centre at `center`, seen from x.
-Surface collider_surface(Collider c, vec3 center, vec3 x) {
+Surface collider_surface(uint c, vec3 center, vec3 x) {
     if (COLLIDER_SPHERE) {
         if (collider_is(c, 0u)) {
-            return sphere_surface(x, center, c.radius);
+            return sphere_surface(x, center, colliders[c].radius);
         }
     }
     if (COLLIDER_PLANE) {
         if (collider_is(c, 1u)) {
-            return plane_surface(x, center, c.axis_y);
+            return plane_surface(x, center, colliders[c].axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
         if (collider_is(c, 2u)) {
-            return capsule_surface(x, center, c.axis_x, c.extent.x, c.radius, c.axis_y);
+            return capsule_surface(x, center, colliders[c].axis_x, colliders[c].extent.x, colliders[c].radius, colliders[c].axis_y);
         }
     }
     if (COLLIDER_BOX) {
@@ -209,25 +211,25 @@ float capsule_distance(vec3 x, vec3 center, vec3 axis, float half_length, float 
     return sqrt(dot(offset, offset)) - radius;
 }
 
-float box_distance(vec3 x, Collider c, vec3 center) {
+float box_distance(vec3 x, uint c, vec3 center) {
     vec3 d = x - center;
-    vec3 q = vec3(abs(dot(d, c.axis_x)) - c.extent.x, abs(dot(d, c.axis_y)) - c.extent.y,
-                      abs(dot(d, c.axis_z)) - c.extent.z);
+    vec3 q = vec3(abs(dot(d, colliders[c].axis_x)) - colliders[c].extent.x, abs(dot(d, colliders[c].axis_y)) - colliders[c].extent.y,
+                      abs(dot(d, colliders[c].axis_z)) - colliders[c].extent.z);
     vec3 outside = vec3(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
     float outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
     if (outside_length > 0.0) {
-        return outside_length - c.radius;
+        return outside_length - colliders[c].radius;
     }
     if (q.x >= q.y && q.x >= q.z) {
-        return q.x - c.radius;
+        return q.x - colliders[c].radius;
     }
     if (q.y >= q.z) {
-        return q.y - c.radius;
+        return q.y - colliders[c].radius;
     }
-    return q.z - c.radius;
+    return q.z - colliders[c].radius;
 }
 
-float mesh_distance(vec3 x, Collider c, vec3 center) {
+float mesh_distance(vec3 x, uint c, vec3 center) {
     FieldCell f = field_cell(x, c, center);
     float value = field_value(f, field_edges(f));
     float outside_length = sqrt(dot(f.outside, f.outside));
@@ -238,20 +240,20 @@ float mesh_distance(vec3 x, Collider c, vec3 center) {
 }
 
 // The signed distance of collider c, its centre at `center`, at x.
-float collider_distance(Collider c, vec3 center, vec3 x) {
+float collider_distance(uint c, vec3 center, vec3 x) {
     if (COLLIDER_SPHERE) {
         if (collider_is(c, 0u)) {
-            return sphere_distance(x, center, c.radius);
+            return sphere_distance(x, center, colliders[c].radius);
         }
     }
     if (COLLIDER_PLANE) {
         if (collider_is(c, 1u)) {
-            return dot(x - center, c.axis_y);
+            return dot(x - center, colliders[c].axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
         if (collider_is(c, 2u)) {
-            return capsule_distance(x, center, c.axis_x, c.extent.x, c.radius);
+            return capsule_distance(x, center, colliders[c].axis_x, colliders[c].extent.x, colliders[c].radius);
         }
     }
     if (COLLIDER_BOX) {
@@ -270,16 +272,16 @@ float collider_distance(Collider c, vec3 center, vec3 x) {
 // The surface for the contact forces: the signed distance, and the normal only where x is inside
 // (φ < 0; elsewhere +Y, which no force uses). A sphere's one square root gives both; the other
 // kinds test the distance alone first.
-Surface collider_contact(Collider c, vec3 center, vec3 x) {
+Surface collider_contact(uint c, vec3 center, vec3 x) {
     if (COLLIDER_SPHERE) {
         if (collider_is(c, 0u)) {
             vec3 offset = x - center;
             float distance = sqrt(dot(offset, offset));
             vec3 normal = vec3(0.0, 1.0, 0.0);
-            if (distance < c.radius && distance > 0.0) {
+            if (distance < colliders[c].radius && distance > 0.0) {
                 normal = offset * (1.0 / distance);
             }
-            return Surface(distance - c.radius, normal);
+            return Surface(distance - colliders[c].radius, normal);
         }
     }
     float distance = collider_distance(c, center, x);

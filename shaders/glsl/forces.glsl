@@ -111,16 +111,16 @@ vec3 pin_velocity(float t) {
 
 // Where collider `c`'s centre is at time t, and how fast it moves (still without
 // MovingColliders).
-vec3 collider_center(Collider c, float t) {
+vec3 collider_center(uint c, float t) {
     if (EFFECT_MOVING_COLLIDERS) {
-        return c.center + motion_displacement(c.velocity, c.amplitude, c.omega, t);
+        return colliders[c].center + motion_displacement(colliders[c].velocity, colliders[c].amplitude, colliders[c].omega, t);
     }
-    return c.center;
+    return colliders[c].center;
 }
 
-vec3 collider_velocity(Collider c, float t) {
+vec3 collider_velocity(uint c, float t) {
     if (EFFECT_MOVING_COLLIDERS) {
-        return motion_velocity(c.velocity, c.amplitude, c.omega, t);
+        return motion_velocity(colliders[c].velocity, colliders[c].amplitude, colliders[c].omega, t);
     }
     return vec3(0.0);
 }

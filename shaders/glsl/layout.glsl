@@ -56,7 +56,11 @@ struct Constraint {
 
 // The bindings every kernel shares: the parameters and the colliders, and the mesh colliders'
 // distance fields (m) at the binding the kernel names before including this file.
-layout(set = 0, binding = 1, std430) readonly buffer Colliders { Collider colliders[]; };
+// The colliders: a uniform block of MAX_COLLIDERS (cloth_core::colliders::MAX_COLLIDERS; params
+// says how many are real). Every invocation reads the same collider at once, which a uniform block
+// serves from the constant cache.
+#define MAX_COLLIDERS 64
+layout(set = 0, binding = 1, std140) uniform Colliders { Collider colliders[MAX_COLLIDERS]; };
 layout(set = 0, binding = DISTANCE_FIELDS_BINDING, std430) readonly buffer DistanceFields { float distance_fields[]; };
 
 #include "colliders.glsl"

@@ -116,19 +116,19 @@ const float SWEEP_TOLERANCE = 0.01;
 // Any collider, continuously (cloth_core::constraints::project_swept): the sphere exactly; a
 // plane by its end point; a capsule or box path longer than the collider is thick that ends
 // outside is sphere-traced from its start and stopped where it enters.
-float project_swept(inout vec3 x, vec3 x_start, Collider c, vec3 center) {
+float project_swept(inout vec3 x, vec3 x_start, uint c, vec3 center) {
     if (COLLIDER_SPHERE) {
-        if (c.kind == 0u) {
-            return project_sphere_swept(x, x_start, center, c.radius);
+        if (colliders[c].kind == 0u) {
+            return project_sphere_swept(x, x_start, center, colliders[c].radius);
         }
     }
     float end_ = collider_distance(c, center, x);
-    if (end_ > 0.0 && c.kind != 1u) {
+    if (end_ > 0.0 && colliders[c].kind != 1u) {
         vec3 d = x - x_start;
         float len = sqrt(dot(d, d));
-        if (len > c.thickness && collider_distance(c, center, x_start) >= 0.0) {
+        if (len > colliders[c].thickness && collider_distance(c, center, x_start) >= 0.0) {
             float inverse_length = 1.0 / len;
-            float stop = c.thickness * SWEEP_TOLERANCE;
+            float stop = colliders[c].thickness * SWEEP_TOLERANCE;
             float s = 0.0;
             for (uint k = 0u; k < SWEEP_STEPS; k++) {
                 vec3 p = x_start + d * s;
@@ -233,10 +233,9 @@ void project_colliders(uint i) {
     float correction = normal_corrections[i];
     for (uint s = 0u; s < params.collider_count; s++) {
         // Where the collider ends the substep, and the vertex's start carried along with it.
-        Collider collider = colliders[s];
-        vec3 center = collider_center(collider, t_end);
-        vec3 x_start = positions_in[i].xyz + (center - collider_center(collider, t));
-        correction = correction + project_swept(x, x_start, collider, center);
+        vec3 center = collider_center(s, t_end);
+        vec3 x_start = positions_in[i].xyz + (center - collider_center(s, t));
+        correction = correction + project_swept(x, x_start, s, center);
     }
     positions_out[i] = vec4(x, p.w);
     normal_corrections[i] = correction;
@@ -254,13 +253,12 @@ void finish(uint i) {
         if (EFFECT_FRICTION) {
             if (correction > 0.0) {
                 for (uint s = 0u; s < params.collider_count; s++) {
-                    Collider collider = colliders[s];
-                    vec3 center = collider_center(collider, t_end);
-                    vec3 x_start = x0 + (center - collider_center(collider, t));
+                    vec3 center = collider_center(s, t_end);
+                    vec3 x_start = x0 + (center - collider_center(s, t));
                     // Off the collider friction does nothing: the normal only on it.
-                    if (collider_distance(collider, center, x) <= collider.tolerance) {
-                        Surface surface = collider_surface(collider, center, x);
-                        x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
+                    if (collider_distance(s, center, x) <= colliders[s].tolerance) {
+                        Surface surface = collider_surface(s, center, x);
+                        x = contact_friction(x, x_start, surface, colliders[s].tolerance, colliders[s].friction, correction);
                     }
                 }
                 positions_out[i] = vec4(x, p.w);
@@ -272,8 +270,7 @@ void finish(uint i) {
     if (EFFECT_CONTACT) {
         float deepest = 0.0;
         for (uint s = 0u; s < params.collider_count; s++) {
-            Collider collider = colliders[s];
-            deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_end), x));
+            deepest = max(deepest, -collider_distance(s, collider_center(s, t_end), x));
         }
         if (deepest > 0.0) {
             atomicMax(max_penetration_bits, floatBitsToUint(deepest));

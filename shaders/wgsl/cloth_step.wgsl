@@ -13,7 +13,7 @@
 override STAGE: u32 = 0u;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
-@group(0) @binding(1) var<storage, read> colliders: array<Collider>;
+@group(0) @binding(1) var<uniform> colliders: array<Collider, MAX_COLLIDERS>;
 // No spring list: the springs are computed from the grid (add_stencil_springs).
 @group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
 @group(0) @binding(3) var<storage, read> velocities_in: array<vec4<f32>>;
@@ -230,21 +230,20 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         var stick_normal = vec3<f32>(0.0);
         if (EFFECT_CONTACT) {
             for (var s = 0u; s < params.collider_count; s++) {
-                let collider = colliders[s];
-                let center = collider_center(collider, t);
+                let center = collider_center(s, t);
                 // The normal only for a vertex inside: outside, the distance alone.
-                let surface = collider_contact(collider, center, x);
+                let surface = collider_contact(s, center, x);
                 if (surface.distance >= 0.0) {
                     continue;
                 }
-                let v_rel = v - collider_velocity(collider, t);
-                let c = contact_force(v_rel, surface, collider.stiffness, collider.damping);
+                let v_rel = v - collider_velocity(s, t);
+                let c = contact_force(v_rel, surface, colliders[s].stiffness, colliders[s].damping);
                 if (c.hit) {
                     force += c.force;
                     if (EFFECT_FRICTION) {
-                        force += friction_force(other_forces, v_rel, c.normal, mass, friction_dt, collider.friction);
+                        force += friction_force(other_forces, v_rel, c.normal, mass, friction_dt, colliders[s].friction);
                         if (STAGE == 6u && !stuck
-                            && friction_holds(other_forces, v_rel, c.normal, mass, friction_dt, collider.friction)) {
+                            && friction_holds(other_forces, v_rel, c.normal, mass, friction_dt, colliders[s].friction)) {
                             stuck = true;
                             stick_normal = c.normal;
                         }
@@ -324,8 +323,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         if (STAGE == 0u || STAGE == 1u || STAGE == 6u) {
             var deepest = 0.0;
             for (var s = 0u; s < params.collider_count; s++) {
-                let collider = colliders[s];
-                deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
+                deepest = max(deepest, -collider_distance(s, collider_center(s, t_out), x_new));
             }
             if (deepest > 0.0) {
                 atomicMax(&max_penetration_bits, bitcast<u32>(deepest));

@@ -14,7 +14,7 @@ const TILE_CELLS: u32 = TILE_WIDTH * TILE_HEIGHT;
 const HALO: u32 = 2u * FUSED_SUBSTEPS;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
-@group(0) @binding(1) var<storage, read> colliders: array<Collider>;
+@group(0) @binding(1) var<uniform> colliders: array<Collider, MAX_COLLIDERS>;
 @group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
 @group(0) @binding(3) var<storage, read> velocities_in: array<vec4<f32>>;  // w: the state's time, s
 @group(0) @binding(4) var<storage, read_write> positions_out: array<vec4<f32>>;
@@ -174,19 +174,18 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
                 let other_forces = force;
                 if (EFFECT_CONTACT) {
                     for (var n = 0u; n < params.collider_count; n++) {
-                        let collider = colliders[n];
-                        let center = collider_center(collider, t);
+                        let center = collider_center(n, t);
                         // The normal only for a vertex inside: outside, the distance alone.
-                        let surface = collider_contact(collider, center, x);
+                        let surface = collider_contact(n, center, x);
                         if (surface.distance >= 0.0) {
                             continue;
                         }
-                        let v_rel = v - collider_velocity(collider, t);
-                        let contact = contact_force(v_rel, surface, collider.stiffness, collider.damping);
+                        let v_rel = v - collider_velocity(n, t);
+                        let contact = contact_force(v_rel, surface, colliders[n].stiffness, colliders[n].damping);
                         if (contact.hit) {
                             force += contact.force;
                             if (EFFECT_FRICTION) {
-                                force += friction_force(other_forces, v_rel, contact.normal, mass, dt, collider.friction);
+                                force += friction_force(other_forces, v_rel, contact.normal, mass, dt, colliders[n].friction);
                             }
                         }
                     }
@@ -204,8 +203,7 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
             if (EFFECT_CONTACT) {
                 if (is_output) {
                     for (var n = 0u; n < params.collider_count; n++) {
-                        let collider = colliders[n];
-                        deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_out), x_new));
+                        deepest = max(deepest, -collider_distance(n, collider_center(n, t_out), x_new));
                     }
                 }
             }

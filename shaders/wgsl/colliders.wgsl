@@ -2,7 +2,10 @@
 // operation by operation): each kind's surface seen from a point x, its signed distance φ (m,
 // negative inside) and outward unit normal. Prepended, after layout.wgsl, to every module that
 // meets colliders: the compute kernels and the inspector's render.wgsl. Each of those declares
-// `distance_fields`, the mesh colliders' samples (`array<f32>`), at its own binding.
+// `colliders` (`array<Collider>`) and `distance_fields`, the mesh colliders' samples
+// (`array<f32>`), at its own bindings. A collider `c` is its index in `colliders`: each function
+// reads the fields it needs from the buffer, so a kernel loads no more of a collider than its
+// kind uses.
 //
 // A kind no collider of the scene has is compiled out: each COLLIDER_* is a pipeline-overridable
 // constant (true when a collider of the scene has the kind), and the branch on a false one is
@@ -53,32 +56,32 @@ fn sign_of(v: f32) -> f32 {
 }
 
 // A rounded box: p = Rᵀ(x − c), q = |p| − e, φ = |max(q, 0)| + min(max_k q_k, 0) − ρ.
-fn box_surface(x: vec3<f32>, c: Collider, center: vec3<f32>) -> Surface {
+fn box_surface(x: vec3<f32>, c: u32, center: vec3<f32>) -> Surface {
     let d = x - center;
-    let p = vec3<f32>(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
-    let q = vec3<f32>(abs(p.x) - c.extent.x, abs(p.y) - c.extent.y, abs(p.z) - c.extent.z);
+    let p = vec3<f32>(dot(d, colliders[c].axis_x), dot(d, colliders[c].axis_y), dot(d, colliders[c].axis_z));
+    let q = vec3<f32>(abs(p.x) - colliders[c].extent.x, abs(p.y) - colliders[c].extent.y, abs(p.z) - colliders[c].extent.z);
     let outside = vec3<f32>(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
     let outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
     if (outside_length > 0.0) {
         let scale = 1.0 / outside_length;
         let local = vec3<f32>(sign_of(p.x) * outside.x * scale, sign_of(p.y) * outside.y * scale,
                               sign_of(p.z) * outside.z * scale);
-        let normal = c.axis_x * local.x + c.axis_y * local.y + c.axis_z * local.z;
-        return Surface(outside_length - c.radius, normal);
+        let normal = colliders[c].axis_x * local.x + colliders[c].axis_y * local.y + colliders[c].axis_z * local.z;
+        return Surface(outside_length - colliders[c].radius, normal);
     }
     // Inside the core box: the nearest face is the axis of the largest q (ties to the first).
-    if (q.x >= q.y && q.x >= q.z) {
-        return Surface(q.x - c.radius, c.axis_x * sign_of(p.x));
+    if ((q.x >= q.y) & (q.x >= q.z)) {
+        return Surface(q.x - colliders[c].radius, colliders[c].axis_x * sign_of(p.x));
     }
     if (q.y >= q.z) {
-        return Surface(q.y - c.radius, c.axis_y * sign_of(p.y));
+        return Surface(q.y - colliders[c].radius, colliders[c].axis_y * sign_of(p.y));
     }
-    return Surface(q.z - c.radius, c.axis_z * sign_of(p.z));
+    return Surface(q.z - colliders[c].radius, colliders[c].axis_z * sign_of(p.z));
 }
 
 // A mesh's distance field, sample (i, j, k) (cloth_core::mesh::DistanceField).
-fn field_sample(c: Collider, i: u32, j: u32, k: u32) -> f32 {
-    return distance_fields[c.field_first + i + c.field_dims.x * (j + c.field_dims.y * k)];
+fn field_sample(c: u32, i: u32, j: u32, k: u32) -> f32 {
+    return distance_fields[colliders[c].field_first + i + colliders[c].field_dims.x * (j + colliders[c].field_dims.y * k)];
 }
 
 // The cell of a mesh's distance field around p = Rᵀ(x − c) (cloth_core::mesh::FieldCell): its
@@ -92,17 +95,17 @@ struct FieldCell {
     outside: vec3<f32>,
 }
 
-fn field_cell(x: vec3<f32>, c: Collider, center: vec3<f32>) -> FieldCell {
+fn field_cell(x: vec3<f32>, c: u32, center: vec3<f32>) -> FieldCell {
     let d = x - center;
-    let p = vec3<f32>(dot(d, c.axis_x), dot(d, c.axis_y), dot(d, c.axis_z));
-    let cell = c.radius;
-    let g = (p - c.extent) * (1.0 / cell);
-    let high = vec3<f32>(f32(c.field_dims.x - 1u), f32(c.field_dims.y - 1u), f32(c.field_dims.z - 1u));
+    let p = vec3<f32>(dot(d, colliders[c].axis_x), dot(d, colliders[c].axis_y), dot(d, colliders[c].axis_z));
+    let cell = colliders[c].radius;
+    let g = (p - colliders[c].extent) * (1.0 / cell);
+    let high = vec3<f32>(f32(colliders[c].field_dims.x - 1u), f32(colliders[c].field_dims.y - 1u), f32(colliders[c].field_dims.z - 1u));
     let q = vec3<f32>(min(max(g.x, 0.0), high.x), min(max(g.y, 0.0), high.y), min(max(g.z, 0.0), high.z));
     // The cell's lowest corner: at most the last but one point, so the cell exists.
-    let i = min(u32(floor(q.x)), c.field_dims.x - 2u);
-    let j = min(u32(floor(q.y)), c.field_dims.y - 2u);
-    let k = min(u32(floor(q.z)), c.field_dims.z - 2u);
+    let i = min(u32(floor(q.x)), colliders[c].field_dims.x - 2u);
+    let j = min(u32(floor(q.y)), colliders[c].field_dims.y - 2u);
+    let k = min(u32(floor(q.z)), colliders[c].field_dims.z - 2u);
     let low_corners = vec4<f32>(field_sample(c, i, j, k), field_sample(c, i + 1u, j, k),
                                 field_sample(c, i, j + 1u, k), field_sample(c, i + 1u, j + 1u, k));
     let high_corners = vec4<f32>(field_sample(c, i, j, k + 1u), field_sample(c, i + 1u, j, k + 1u),
@@ -130,7 +133,7 @@ fn field_value(f: FieldCell, edges: vec4<f32>) -> f32 {
 
 // A mesh: trilinear in its distance field, the normal the trilinear gradient (outside the field's
 // grid: the nearest grid point's φ plus the way there, the normal along that way), rotated back.
-fn mesh_surface(x: vec3<f32>, c: Collider, center: vec3<f32>) -> Surface {
+fn mesh_surface(x: vec3<f32>, c: u32, center: vec3<f32>) -> Surface {
     let f = field_cell(x, c, center);
     let edges = field_edges(f);
     let value = field_value(f, edges);
@@ -160,7 +163,7 @@ fn mesh_surface(x: vec3<f32>, c: Collider, center: vec3<f32>) -> Surface {
             n = gradient * (1.0 / len);
         }
     }
-    return Surface(distance, c.axis_x * n.x + c.axis_y * n.y + c.axis_z * n.z);
+    return Surface(distance, colliders[c].axis_x * n.x + colliders[c].axis_y * n.y + colliders[c].axis_z * n.z);
 }
 
 // Whether the scene has colliders of one kind only: then no collider's kind needs a test (a
@@ -170,26 +173,28 @@ fn one_collider_kind() -> bool {
         + u32(COLLIDER_MESH) == 1u;
 }
 
-// Whether collider c has `kind`, of the kinds compiled in.
-fn collider_is(c: Collider, kind: u32) -> bool {
-    return one_collider_kind() || c.kind == kind;
+// Whether collider c has `kind`, of the kinds compiled in. (`|` and `&` rather than `||` and `&&`
+// in this file: naga turns each short-circuit operator into a branch, see add_stencil_springs in
+// cloth_step.wgsl. No operand has side effects.)
+fn collider_is(c: u32, kind: u32) -> bool {
+    return one_collider_kind() | (colliders[c].kind == kind);
 }
 
 // The surface of collider c, its centre at `center`, seen from x.
-fn collider_surface(c: Collider, center: vec3<f32>, x: vec3<f32>) -> Surface {
+fn collider_surface(c: u32, center: vec3<f32>, x: vec3<f32>) -> Surface {
     if (COLLIDER_SPHERE) {
         if (collider_is(c, 0u)) {
-            return sphere_surface(x, center, c.radius);
+            return sphere_surface(x, center, colliders[c].radius);
         }
     }
     if (COLLIDER_PLANE) {
         if (collider_is(c, 1u)) {
-            return plane_surface(x, center, c.axis_y);
+            return plane_surface(x, center, colliders[c].axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
         if (collider_is(c, 2u)) {
-            return capsule_surface(x, center, c.axis_x, c.extent.x, c.radius, c.axis_y);
+            return capsule_surface(x, center, colliders[c].axis_x, colliders[c].extent.x, colliders[c].radius, colliders[c].axis_y);
         }
     }
     if (COLLIDER_BOX) {
@@ -219,25 +224,25 @@ fn capsule_distance(x: vec3<f32>, center: vec3<f32>, axis: vec3<f32>, half_lengt
     return sqrt(dot(offset, offset)) - radius;
 }
 
-fn box_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
+fn box_distance(x: vec3<f32>, c: u32, center: vec3<f32>) -> f32 {
     let d = x - center;
-    let q = vec3<f32>(abs(dot(d, c.axis_x)) - c.extent.x, abs(dot(d, c.axis_y)) - c.extent.y,
-                      abs(dot(d, c.axis_z)) - c.extent.z);
+    let q = vec3<f32>(abs(dot(d, colliders[c].axis_x)) - colliders[c].extent.x, abs(dot(d, colliders[c].axis_y)) - colliders[c].extent.y,
+                      abs(dot(d, colliders[c].axis_z)) - colliders[c].extent.z);
     let outside = vec3<f32>(max(q.x, 0.0), max(q.y, 0.0), max(q.z, 0.0));
     let outside_length = sqrt(outside.x * outside.x + outside.y * outside.y + outside.z * outside.z);
     if (outside_length > 0.0) {
-        return outside_length - c.radius;
+        return outside_length - colliders[c].radius;
     }
-    if (q.x >= q.y && q.x >= q.z) {
-        return q.x - c.radius;
+    if ((q.x >= q.y) & (q.x >= q.z)) {
+        return q.x - colliders[c].radius;
     }
     if (q.y >= q.z) {
-        return q.y - c.radius;
+        return q.y - colliders[c].radius;
     }
-    return q.z - c.radius;
+    return q.z - colliders[c].radius;
 }
 
-fn mesh_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
+fn mesh_distance(x: vec3<f32>, c: u32, center: vec3<f32>) -> f32 {
     let f = field_cell(x, c, center);
     let value = field_value(f, field_edges(f));
     let outside_length = sqrt(dot(f.outside, f.outside));
@@ -248,20 +253,20 @@ fn mesh_distance(x: vec3<f32>, c: Collider, center: vec3<f32>) -> f32 {
 }
 
 // The signed distance of collider c, its centre at `center`, at x.
-fn collider_distance(c: Collider, center: vec3<f32>, x: vec3<f32>) -> f32 {
+fn collider_distance(c: u32, center: vec3<f32>, x: vec3<f32>) -> f32 {
     if (COLLIDER_SPHERE) {
         if (collider_is(c, 0u)) {
-            return sphere_distance(x, center, c.radius);
+            return sphere_distance(x, center, colliders[c].radius);
         }
     }
     if (COLLIDER_PLANE) {
         if (collider_is(c, 1u)) {
-            return dot(x - center, c.axis_y);
+            return dot(x - center, colliders[c].axis_y);
         }
     }
     if (COLLIDER_CAPSULE) {
         if (collider_is(c, 2u)) {
-            return capsule_distance(x, center, c.axis_x, c.extent.x, c.radius);
+            return capsule_distance(x, center, colliders[c].axis_x, colliders[c].extent.x, colliders[c].radius);
         }
     }
     if (COLLIDER_BOX) {
@@ -280,16 +285,16 @@ fn collider_distance(c: Collider, center: vec3<f32>, x: vec3<f32>) -> f32 {
 // The surface for the contact forces: the signed distance, and the normal only where x is inside
 // (φ < 0; elsewhere +Y, which no force uses). A sphere's one square root gives both; the other
 // kinds test the distance alone first.
-fn collider_contact(c: Collider, center: vec3<f32>, x: vec3<f32>) -> Surface {
+fn collider_contact(c: u32, center: vec3<f32>, x: vec3<f32>) -> Surface {
     if (COLLIDER_SPHERE) {
         if (collider_is(c, 0u)) {
             let offset = x - center;
             let distance = sqrt(dot(offset, offset));
             var normal = vec3<f32>(0.0, 1.0, 0.0);
-            if (distance < c.radius && distance > 0.0) {
+            if ((distance < colliders[c].radius) & (distance > 0.0)) {
                 normal = offset * (1.0 / distance);
             }
-            return Surface(distance - c.radius, normal);
+            return Surface(distance - colliders[c].radius, normal);
         }
     }
     let distance = collider_distance(c, center, x);

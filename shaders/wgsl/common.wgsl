@@ -140,16 +140,16 @@ fn pin_velocity(t: f32) -> vec3<f32> {
 
 // Where collider `c`'s centre is at time t, and how fast it moves (still without
 // MovingColliders).
-fn collider_center(c: Collider, t: f32) -> vec3<f32> {
+fn collider_center(c: u32, t: f32) -> vec3<f32> {
     if (EFFECT_MOVING_COLLIDERS) {
-        return c.center + motion_displacement(c.velocity, c.amplitude, c.omega, t);
+        return colliders[c].center + motion_displacement(colliders[c].velocity, colliders[c].amplitude, colliders[c].omega, t);
     }
-    return c.center;
+    return colliders[c].center;
 }
 
-fn collider_velocity(c: Collider, t: f32) -> vec3<f32> {
+fn collider_velocity(c: u32, t: f32) -> vec3<f32> {
     if (EFFECT_MOVING_COLLIDERS) {
-        return motion_velocity(c.velocity, c.amplitude, c.omega, t);
+        return motion_velocity(colliders[c].velocity, colliders[c].amplitude, colliders[c].omega, t);
     }
     return vec3<f32>(0.0);
 }

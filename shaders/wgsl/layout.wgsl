@@ -22,6 +22,11 @@ struct SimParams {
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
 }
 
+// The colliders' uniform block holds this many (cloth_core::colliders::MAX_COLLIDERS; params
+// says how many are real). Every invocation reads the same collider at once, which a uniform block
+// serves from the constant cache.
+const MAX_COLLIDERS: u32 = 64u;
+
 // cloth_gpu::layout::GpuCollider (144 bytes): one collider of any kind.
 struct Collider {
     center: vec3<f32>,       // m, at time 0 (a plane's point nearest the origin, a capsule's midpoint)

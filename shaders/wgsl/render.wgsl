@@ -56,9 +56,8 @@ fn ramp(t: f32) -> vec3<f32> {
 fn contact_state(x: vec3<f32>, v: vec3<f32>) -> u32 {
     var state = 0u;
     for (var s = 0u; s < cloth.collider_count; s++) {
-        let c = colliders[s];
-        let surface = collider_surface(c, c.center, x);
-        if (surface.distance < c.tolerance * 2000.0) {
+        let surface = collider_surface(s, colliders[s].center, x);
+        if (surface.distance < colliders[s].tolerance * 2000.0) {
             let nrm = surface.normal;
             let v_t = v - nrm * dot(v, nrm);
             state = select(2u, 1u, sqrt(dot(v_t, v_t)) < 1e-3);

@@ -17,7 +17,7 @@
 override XPBD_PASS: u32 = 0u;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
-@group(0) @binding(1) var<storage, read> colliders: array<Collider>;
+@group(0) @binding(1) var<uniform> colliders: array<Collider, MAX_COLLIDERS>;
 @group(0) @binding(2) var<storage, read> constraints: array<Constraint>;
 // The state at the substep's start (w: 1 free, 0 pinned).
 @group(0) @binding(3) var<storage, read> positions_in: array<vec4<f32>>;
@@ -116,19 +116,19 @@ const SWEEP_TOLERANCE: f32 = 0.01;
 // Any collider, continuously (cloth_core::constraints::project_swept): the sphere exactly; a
 // plane by its end point; a capsule or box path longer than the collider is thick that ends
 // outside is sphere-traced from its start and stopped where it enters.
-fn project_swept(x: vec3<f32>, x_start: vec3<f32>, c: Collider, center: vec3<f32>) -> Projection {
+fn project_swept(x: vec3<f32>, x_start: vec3<f32>, c: u32, center: vec3<f32>) -> Projection {
     if (COLLIDER_SPHERE) {
-        if (c.kind == 0u) {
-            return project_sphere_swept(x, x_start, center, c.radius);
+        if (colliders[c].kind == 0u) {
+            return project_sphere_swept(x, x_start, center, colliders[c].radius);
         }
     }
     let end = collider_distance(c, center, x);
-    if (end > 0.0 && c.kind != 1u) {
+    if (end > 0.0 && colliders[c].kind != 1u) {
         let d = x - x_start;
         let length = sqrt(dot(d, d));
-        if (length > c.thickness && collider_distance(c, center, x_start) >= 0.0) {
+        if (length > colliders[c].thickness && collider_distance(c, center, x_start) >= 0.0) {
             let inverse_length = 1.0 / length;
-            let stop = c.thickness * SWEEP_TOLERANCE;
+            let stop = colliders[c].thickness * SWEEP_TOLERANCE;
             var s = 0.0;
             for (var k = 0u; k < SWEEP_STEPS; k++) {
                 let p = x_start + d * s;
@@ -234,10 +234,9 @@ fn project_colliders(i: u32) {
     var correction = normal_corrections[i];
     for (var s = 0u; s < params.collider_count; s++) {
         // Where the collider ends the substep, and the vertex's start carried along with it.
-        let collider = colliders[s];
-        let center = collider_center(collider, t_end);
-        let x_start = positions_in[i].xyz + (center - collider_center(collider, t));
-        let r = project_swept(x, x_start, collider, center);
+        let center = collider_center(s, t_end);
+        let x_start = positions_in[i].xyz + (center - collider_center(s, t));
+        let r = project_swept(x, x_start, s, center);
         x = r.x;
         correction = correction + r.depth;
     }
@@ -257,13 +256,12 @@ fn finish(i: u32) {
         if (EFFECT_FRICTION) {
             if (correction > 0.0) {
                 for (var s = 0u; s < params.collider_count; s++) {
-                    let collider = colliders[s];
-                    let center = collider_center(collider, t_end);
-                    let x_start = x0 + (center - collider_center(collider, t));
+                    let center = collider_center(s, t_end);
+                    let x_start = x0 + (center - collider_center(s, t));
                     // Off the collider friction does nothing: the normal only on it.
-                    if (collider_distance(collider, center, x) <= collider.tolerance) {
-                        let surface = collider_surface(collider, center, x);
-                        x = contact_friction(x, x_start, surface, collider.tolerance, collider.friction, correction);
+                    if (collider_distance(s, center, x) <= colliders[s].tolerance) {
+                        let surface = collider_surface(s, center, x);
+                        x = contact_friction(x, x_start, surface, colliders[s].tolerance, colliders[s].friction, correction);
                     }
                 }
                 positions_out[i] = vec4<f32>(x, p.w);
@@ -275,8 +273,7 @@ fn finish(i: u32) {
     if (EFFECT_CONTACT) {
         var deepest = 0.0;
         for (var s = 0u; s < params.collider_count; s++) {
-            let collider = colliders[s];
-            deepest = max(deepest, -collider_distance(collider, collider_center(collider, t_end), x));
+            deepest = max(deepest, -collider_distance(s, collider_center(s, t_end), x));
         }
         if (deepest > 0.0) {
             atomicMax(&max_penetration_bits, bitcast<u32>(deepest));

@@ -61,9 +61,13 @@ struct Reflection {
     member_offsets: HashMap<u32, Vec<(u32, u32)>>,
     /// Struct type ids, in order of declaration.
     structs: Vec<u32>,
-    /// Runtime-array type id -> element type id; type id -> ArrayStride.
+    /// Array type id -> element type id; type id -> ArrayStride; fixed-size array type id ->
+    /// the id of its length.
     array_element: HashMap<u32, u32>,
     array_stride: HashMap<u32, u32>,
+    array_length: HashMap<u32, u32>,
+    /// Result id -> the first word of an OpConstant's value.
+    constants: HashMap<u32, u32>,
     /// Result id -> OpName; result id -> SpecId.
     names: HashMap<u32, String>,
     spec_ids: HashMap<u32, u32>,
@@ -88,7 +92,12 @@ fn reflect(spirv: &[u8]) -> Reflection {
             71 if op[1] == 1 => drop(r.spec_ids.insert(op[0], op[2])),
             71 if op[1] == 6 => drop(r.array_stride.insert(op[0], op[2])),
             72 if op[2] == 35 => r.member_offsets.entry(op[0]).or_default().push((op[1], op[3])),
+            28 => {
+                r.array_element.insert(op[0], op[1]);
+                r.array_length.insert(op[0], op[2]);
+            }
             29 => drop(r.array_element.insert(op[0], op[1])),
+            43 => drop(r.constants.insert(op[1], op[2])),
             30 => r.structs.push(op[0]),
             _ => {}
         }
@@ -142,6 +151,44 @@ fn every_spirv_module_lays_the_shared_structs_out_as_the_host() {
             assert_eq!(members, layout.fields, "{file}: {name}: SPIR-V members (left) against the Rust type's (right)");
         }
         assert!(found >= 2, "{file}: the parameters and the colliders at least");
+    }
+}
+
+/// The kernels' uniform block of colliders holds `cloth_core::colliders::MAX_COLLIDERS`, the
+/// number the host pads it to and validation allows: in WGSL the constant `MAX_COLLIDERS`, in
+/// SPIR-V the length of the array of `Collider`s.
+#[test]
+fn the_collider_block_holds_as_many_colliders_as_the_host_allows() {
+    let max = cloth_core::colliders::MAX_COLLIDERS;
+    for (file, source) in wgsl_modules() {
+        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let (_, constant) = (module.constants.iter())
+            .find(|(_, c)| c.name.as_deref() == Some("MAX_COLLIDERS"))
+            .unwrap_or_else(|| panic!("{file}: no MAX_COLLIDERS"));
+        let value = match module.global_expressions[constant.init] {
+            naga::Expression::Literal(naga::Literal::U32(n)) => n as usize,
+            ref other => panic!("{file}: MAX_COLLIDERS is {other:?}"),
+        };
+        assert_eq!(value, max, "{file}: MAX_COLLIDERS");
+    }
+    let collider = (cloth_gpu::layout::struct_layouts().into_iter())
+        .find(|l| l.shader_name == "Collider")
+        .expect("the Collider layout");
+    let names: Vec<&str> = collider.fields.iter().map(|f| f.0).collect();
+    for (file, spirv) in SPIRV_MODULES {
+        let r = reflect(spirv);
+        let id = r.structs.iter().copied().find(|id| {
+            let mut members: Vec<String> = r.member_names.get(id).into_iter().flatten().map(|m| m.1.clone()).collect();
+            members.sort();
+            let mut sorted = names.clone();
+            sorted.sort();
+            members == sorted && r.member_offsets.contains_key(id)
+        });
+        let id = id.unwrap_or_else(|| panic!("{file}: no laid-out Collider"));
+        let (array, _) =
+            (r.array_element.iter()).find(|(_, e)| **e == id).unwrap_or_else(|| panic!("{file}: no array of Collider"));
+        let length = r.array_length.get(array).and_then(|l| r.constants.get(l)).copied();
+        assert_eq!(length, Some(max as u32), "{file}: the array of Collider holds MAX_COLLIDERS");
     }
 }
 

@@ -308,6 +308,11 @@ impl ColliderKind {
     }
 }
 
+/// The most colliders a scene may have. The GPU kernels read the colliders from a uniform block
+/// of this many (every thread of a kernel reads the same collider at once, which a uniform block
+/// serves from the constant cache).
+pub const MAX_COLLIDERS: usize = 64;
+
 /// Relative distance within which XPBD's friction treats a projected vertex as on the surface
 /// (of the collider's size; [`Placement::tolerance`]).
 pub const ON_SURFACE: f64 = 1e-6;

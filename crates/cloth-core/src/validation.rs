@@ -270,6 +270,17 @@ impl Scene {
         c.spring("springs.structural", &self.springs.structural);
         c.spring("springs.shear", &self.springs.shear);
         c.spring("springs.bend", &self.springs.bend);
+        if self.colliders.len() > crate::colliders::MAX_COLLIDERS {
+            c.fail(
+                "colliders",
+                format!(
+                    "lists {} colliders, more than the {} a scene may have",
+                    self.colliders.len(),
+                    crate::colliders::MAX_COLLIDERS
+                ),
+                "merge colliders into fewer (several boxes into one mesh, say) or remove some",
+            );
+        }
         for (k, collider) in self.colliders.iter().enumerate() {
             c.collider(&format!("colliders[{k}]"), collider);
         }
@@ -453,6 +464,16 @@ mod tests {
         ] {
             assert!(f.iter().any(|x| x == expected), "missing {expected} in {f:?}");
         }
+    }
+
+    #[test]
+    fn more_colliders_than_the_kernels_hold_are_refused() {
+        let mut s = Scene::default();
+        s.colliders = vec![SphereSpec::default().into(); crate::colliders::MAX_COLLIDERS];
+        assert!(s.validate().is_ok(), "{} colliders are allowed", crate::colliders::MAX_COLLIDERS);
+        s.colliders.push(SphereSpec::default().into());
+        let err = s.validate().unwrap_err().to_string();
+        assert!(err.contains("colliders: lists 65 colliders, more than the 64 a scene may have"), "{err}");
     }
 
     #[test]

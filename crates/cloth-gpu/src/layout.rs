@@ -11,6 +11,7 @@
 //! host round trip.
 
 use bytemuck::{Pod, Zeroable};
+pub use cloth_core::colliders::MAX_COLLIDERS;
 use cloth_core::{Scene, SceneQuantities};
 
 /// The byte layout of one shared struct: its name in the shaders, its size and its fields.
@@ -241,9 +242,9 @@ impl GpuCollider {
         }
     }
 
-    /// The colliders the kernels test for `scene` (none without `Contact`), at least one
-    /// element so that the buffer is never empty (`GpuSimParams::collider_count` says how many
-    /// are real).
+    /// The kernels' uniform block of colliders for `scene`: the colliders they test (none
+    /// without `Contact`), then zeroed ones up to [`MAX_COLLIDERS`] (`GpuSimParams::collider_count`
+    /// says how many are real; validation refuses a scene with more).
     pub fn of_scene(scene: &Scene) -> Vec<Self> {
         let mut first = 0;
         let mut colliders: Vec<Self> = (SceneQuantities::of(scene).colliders.iter())
@@ -254,9 +255,7 @@ impl GpuCollider {
                 c
             })
             .collect();
-        if colliders.is_empty() {
-            colliders.push(Self::default());
-        }
+        colliders.resize(MAX_COLLIDERS.max(colliders.len()), Self::default());
         colliders
     }
 

@@ -9,7 +9,7 @@ use cloth_core::integrator::XPBD_ITERATIONS;
 use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
-use crate::layout::{COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSimParams};
+use crate::layout::{COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSimParams, MAX_COLLIDERS};
 use crate::schedule::{PackedPasses, Pass, Schedule, TiledPass};
 use crate::tuning::{GpuTuning, invalid};
 
@@ -236,10 +236,12 @@ const READ: Binding = Binding::Storage { read_only: true };
 const WRITE: Binding = Binding::Storage { read_only: false };
 const PARAMS: Binding = Binding::Uniform { size: size_of::<GpuSimParams>() as u64, dynamic: false };
 const COLOR_RANGE: Binding = Binding::Uniform { size: size_of::<GpuColorRange>() as u64, dynamic: true };
+/// The colliders: a uniform block of [`MAX_COLLIDERS`] ([`GpuCollider::of_scene`]).
+const COLLIDERS: Binding = Binding::Uniform { size: (size_of::<GpuCollider>() * MAX_COLLIDERS) as u64, dynamic: false };
 
 /// The bindings 0-6 of both force kernels: the parameters, the colliders, positions and velocities
 /// in, positions and velocities out, the deepest penetration.
-const STATE_BINDINGS: [Binding; 7] = [PARAMS, READ, READ, READ, WRITE, WRITE, WRITE];
+const STATE_BINDINGS: [Binding; 7] = [PARAMS, COLLIDERS, READ, READ, WRITE, WRITE, WRITE];
 
 /// `cloth_step`'s bindings 7-12: RK4's scratch, the packed `(x, v.x)` and `(v.y, v.z)` in, the
 /// same out, the pin bits.
@@ -253,7 +255,7 @@ const DISTANCE_FIELDS: Binding = READ;
 /// colour range (a block of the colour-range buffer, chosen by a dynamic offset) and the
 /// distance fields.
 const XPBD_BINDINGS: [Binding; 12] =
-    [PARAMS, READ, READ, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, COLOR_RANGE, DISTANCE_FIELDS];
+    [PARAMS, COLLIDERS, READ, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, COLOR_RANGE, DISTANCE_FIELDS];
 
 const NAME: [&str; 2] = ["A", "B"];
 
@@ -333,7 +335,7 @@ impl Plan {
         let (storage, drawable) = (BufferUsage::Storage, BufferUsage::StorageDrawable);
         let state = StateBuffers {
             params: b.filled("params", BufferUsage::Uniform, bytemuck::bytes_of(&GpuSimParams::of(scene))),
-            colliders: b.filled("colliders", storage, bytemuck::cast_slice(&GpuCollider::of_scene(scene))),
+            colliders: b.filled("colliders", BufferUsage::Uniform, bytemuck::cast_slice(&GpuCollider::of_scene(scene))),
             distance_fields: b.filled(
                 "distance fields",
                 storage,
