@@ -468,8 +468,10 @@ mod tests {
 
     #[test]
     fn more_colliders_than_the_kernels_hold_are_refused() {
-        let mut s = Scene::default();
-        s.colliders = vec![SphereSpec::default().into(); crate::colliders::MAX_COLLIDERS];
+        let mut s = Scene {
+            colliders: vec![SphereSpec::default().into(); crate::colliders::MAX_COLLIDERS],
+            ..Default::default()
+        };
         assert!(s.validate().is_ok(), "{} colliders are allowed", crate::colliders::MAX_COLLIDERS);
         s.colliders.push(SphereSpec::default().into());
         let err = s.validate().unwrap_err().to_string();

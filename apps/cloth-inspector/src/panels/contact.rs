@@ -2,7 +2,7 @@
 //! removing them, which one shift-drag moves, and contact and friction on/off.
 
 use cloth_core::Effect;
-use cloth_core::colliders::{ColliderKind, ColliderSpec, Shape};
+use cloth_core::colliders::{ColliderKind, ColliderSpec, MAX_COLLIDERS, Shape};
 use cloth_core::scene::SphereSpec;
 use eframe::egui;
 
@@ -105,8 +105,12 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>, dragged: &mut usize) 
     *dragged = (*dragged).min(ctx.scene.colliders.len().saturating_sub(1));
     ui.horizontal_wrapped(|ui| {
         ui.label("Add (rebuilds):");
+        let room = ctx.scene.colliders.len() < MAX_COLLIDERS;
         for kind in ColliderKind::ALL {
-            if ui.button(kind.name()).clicked() {
+            let button = ui
+                .add_enabled(room, egui::Button::new(kind.name()))
+                .on_disabled_hover_text(format!("a scene holds at most {MAX_COLLIDERS} colliders"));
+            if button.clicked() {
                 ctx.scene.colliders.push(new_collider(kind, ctx.scene.cloth.center));
             }
         }
