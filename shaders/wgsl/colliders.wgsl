@@ -2,10 +2,10 @@
 // operation by operation): each kind's surface seen from a point x, its signed distance φ (m,
 // negative inside) and outward unit normal. Prepended, after layout.wgsl, to every module that
 // meets colliders: the compute kernels and the inspector's render.wgsl. Each of those declares
-// `colliders` (`array<Collider>`) and `distance_fields`, the mesh colliders' samples
-// (`array<f32>`), at its own bindings. A collider `c` is its index in `colliders`: each function
-// reads the fields it needs from the buffer, so a kernel loads no more of a collider than its
-// kind uses.
+// `colliders` (an array of `Collider`: the kernels' uniform block, the view's storage buffer) and
+// `distance_fields`, the mesh colliders' samples (`array<f32>`), at its own bindings. A collider
+// `c` is its index in `colliders`: each function reads the fields it needs, so a kernel loads no
+// more of a collider than its kind uses.
 //
 // A kind no collider of the scene has is compiled out: each COLLIDER_* is a pipeline-overridable
 // constant (true when a collider of the scene has the kind), and the branch on a false one is
