@@ -40,12 +40,13 @@ impl MemoryEstimate {
                 (20 * springs + 4 * vertices + 2 * COLOR_COUNT as u128 * COLOR_RANGE_STRIDE as u128, 16 * springs)
             }
         };
-        // The colliders' uniform block (144 bytes each), and 4 a distance-field sample of each mesh.
+        // The colliders' uniform block, and 4 bytes a distance-field sample of each mesh.
         let samples: u128 = (scene.colliders.iter())
             .filter_map(|c| c.shape.distance_field().and_then(Result::ok))
             .map(|f| f.samples.len() as u128)
             .sum();
-        let colliders = 144 * crate::layout::MAX_COLLIDERS as u128 + 4 * samples.max(1);
+        let colliders =
+            (size_of::<crate::layout::GpuCollider>() * crate::layout::MAX_COLLIDERS) as u128 + 4 * samples.max(1);
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
         Self {
             largest_buffer_bytes: clamp(largest.max(state)),
