@@ -22,6 +22,7 @@ layout(constant_id = 101) const uint STAGE = 0u;
 #define DISTANCE_FIELDS_BINDING 13
 #include "layout.glsl"
 #include "forces.glsl"
+#include "self_collision.glsl"
 
 // No spring list: the springs are computed from the grid (add_stencil_springs).
 layout(set = 0, binding = 2, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, 0 pinned
@@ -48,6 +49,8 @@ layout(set = 0, binding = 9, std430) readonly buffer PackedVIn { vec2 packed_v_i
 layout(set = 0, binding = 10, std430) buffer PackedXvOut { vec4 packed_xv_out[]; };
 layout(set = 0, binding = 11, std430) buffer PackedVOut { vec2 packed_v_out[]; };
 layout(set = 0, binding = 12, std430) readonly buffer PinBits { uint pin_bits[]; };
+// Self-collision's spatial hash (self_hash.comp; a placeholder without SelfCollision).
+layout(set = 0, binding = 14, std430) readonly buffer SelfHashWords { uint self_hash_words[]; };
 // 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
 layout(constant_id = 108) const uint PACKED_IN = 0u;
 layout(constant_id = 109) const uint PACKED_OUT = 0u;
@@ -73,6 +76,42 @@ void state_in(uint index, out vec3 x, out vec3 v) {
 }
 
 #include "grid.glsl"
+
+// The self-collision force on free vertex i at x moving at v, N: the repulsion of every vertex
+// the hash lists in the 27 cells around x's that is closer than the thickness and apart at rest
+// (cloth_core::reference's self_collision_force, cells in the same order).
+vec3 self_collision_force(uint i, vec3 x, vec3 v, float friction_dt) {
+    vec3 force = vec3(0.0);
+    ivec3 base = hash_cell(x);
+    uint buckets = params.self_table.x;
+    uint block_sums = params.self_table.y;
+    for (int dz = -1; dz <= 1; dz++) {
+        for (int dy = -1; dy <= 1; dy++) {
+            for (int dx = -1; dx <= 1; dx++) {
+                ivec3 c = base + ivec3(dx, dy, dz);
+                uint b = hash_bucket(c);
+                uint start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
+                uint end = params.vertex_count;
+                if (b + 1u < buckets) {
+                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
+                }
+                for (uint e = start; e < end; e++) {
+                    uint at = params.self_table.z + 4u * e;
+                    ivec3 listed = ivec3(int(self_hash_words[at]), int(self_hash_words[at + 1u]),
+                                         int(self_hash_words[at + 2u]));
+                    uint j = self_hash_words[at + 3u];
+                    if (listed == c && j != i && apart_at_rest(i, j)) {
+                        vec3 x_j;
+                        vec3 v_j;
+                        state_in(j, x_j, v_j);
+                        force += repulsion_force(x, x_j, v, v_j, params.vertex_mass, friction_dt);
+                    }
+                }
+            }
+        }
+    }
+    return force;
+}
 
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour
 // (i + di, j + dj), if that neighbour exists: Hooke plus damping, with the kind's k and c_d and
@@ -222,6 +261,9 @@ void main() {
         if (EFFECT_WIND) {
             force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
         }
+        if (EFFECT_SELF_COLLISION) {
+            force += self_collision_force(i, x, v, friction_dt);
+        }
         // Against a moving collider, contact and friction act on the velocity relative to it.
         vec3 other_forces = force;
         // RK4's last stage: the normal of a contact whose friction holds the vertex (it sticks).
@@ -256,11 +298,21 @@ void main() {
             // v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
             v_new = v + force * (dt / mass);
             x_new = x + v_new * dt;
+            if (EFFECT_SELF_COLLISION) {
+                // The speed limit (self_collision.glsl), on the substep's end.
+                x_new = limit_step(x, x_new);
+                v_new = limit_velocity(v_new);
+            }
         } else if (STAGE <= 2u) {
             // Verlet: a half kick, then (stage 1) a full drift.
             v_new = v + force * (half_dt / mass);
             if (STAGE == 1u) {
                 x_new = x + v_new * dt;
+                if (EFFECT_SELF_COLLISION) {
+                    x_new = limit_step(x, x_new);
+                }
+            } else if (EFFECT_SELF_COLLISION) {
+                v_new = limit_velocity(v_new);
             }
         } else {
             // RK4 (see STAGE above): x, v here are the stage's state x_k, v_k.
@@ -287,6 +339,10 @@ void main() {
                         vec3 d = x_new - x_start;
                         x_new = x_new - (d - stick_normal * dot(d, stick_normal));
                         v_new = stick_normal * dot(v_new, stick_normal);
+                    }
+                    if (EFFECT_SELF_COLLISION) {
+                        x_new = limit_step(x_start, x_new);
+                        v_new = limit_velocity(v_new);
                     }
                 } else {
                     rk4_scratch[slot + 2u] = vec4(sum_x + v * 2.0, 0.0);

@@ -13,6 +13,7 @@ layout(constant_id = 7) const bool EFFECT_AIR_DRAG = false;
 layout(constant_id = 8) const bool EFFECT_WIND = false;
 layout(constant_id = 9) const bool EFFECT_MOVING_PINS = false;
 layout(constant_id = 10) const bool EFFECT_MOVING_COLLIDERS = false;
+layout(constant_id = 11) const bool EFFECT_SELF_COLLISION = false;
 // The collider kinds (ids from cloth_gpu::plan::COLLIDER_CONSTANT_IDS, in ColliderKind::ALL order):
 // true when a collider of the scene has the kind.
 layout(constant_id = 20) const bool COLLIDER_SPHERE = true;

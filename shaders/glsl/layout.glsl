@@ -2,7 +2,7 @@
 // (checked by tests/tests/shader_layouts.rs), with the two bindings all kernels share
 // (0: parameters, 1: colliders) and the colliders' signed distances (colliders.glsl). Each kernel declares its other bindings.
 
-// cloth_gpu::layout::GpuSimParams (160 bytes, std140).
+// cloth_gpu::layout::GpuSimParams (208 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gravity;       // m/s² (xyz)
     vec4 stiffness;     // N/m by spring kind: structural, shear, bend
@@ -20,7 +20,13 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 pin_velocity;  // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
     vec4 pin_amplitude; // pins' oscillation amplitude, m (xyz)
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
+    vec4 self_contact;  // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
+    vec4 self_hash;     // the hash's cell side, m; speed limit, m/s; grid spacing along u, v, m
+    uvec4 self_table;   // buckets T; first block sum; first entry; blocks (cloth_gpu::layout::SelfHashTable)
 } params;
+
+#ifndef PARAMS_ONLY
+// (A kernel that needs the parameters only defines PARAMS_ONLY first: self_hash.comp.)
 
 // cloth_gpu::layout::GpuCollider (144 bytes): one collider of any kind.
 struct Collider {
@@ -64,3 +70,4 @@ layout(set = 0, binding = 1, std140) uniform Colliders { Collider colliders[MAX_
 layout(set = 0, binding = DISTANCE_FIELDS_BINDING, std430) readonly buffer DistanceFields { float distance_fields[]; };
 
 #include "colliders.glsl"
+#endif

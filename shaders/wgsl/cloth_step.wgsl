@@ -41,6 +41,8 @@ override STAGE: u32 = 0u;
 @group(0) @binding(12) var<storage, read> pin_bits: array<u32>;
 // The mesh colliders' distance fields (colliders.wgsl), m.
 @group(0) @binding(13) var<storage, read> distance_fields: array<f32>;
+// Self-collision's spatial hash (self_hash.wgsl; a placeholder without SelfCollision).
+@group(0) @binding(14) var<storage, read> self_hash_words: array<u32>;
 // 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
 override PACKED_IN: u32 = 0u;
 override PACKED_OUT: u32 = 0u;
@@ -128,6 +130,42 @@ fn add_stencil_springs(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u
         add_spring(force, i, j, index, interior, 2, 0, 2u, 2.0 * rest.x, x, v);
         add_spring(force, i, j, index, interior, 0, 2, 2u, 2.0 * rest.y, x, v);
     }
+}
+
+// The self-collision force on free vertex i at x moving at v, N: the repulsion of every vertex
+// the hash lists in the 27 cells around x's that is closer than the thickness and apart at rest
+// (cloth_core::reference's self_collision_force, cells in the same order).
+fn self_collision_force(i: u32, x: vec3<f32>, v: vec3<f32>, friction_dt: f32) -> vec3<f32> {
+    var force = vec3<f32>(0.0);
+    let base = hash_cell(x);
+    let buckets = params.self_table.x;
+    let block_sums = params.self_table.y;
+    for (var dz = -1; dz <= 1; dz++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let c = base + vec3<i32>(dx, dy, dz);
+                let b = hash_bucket(c);
+                let start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
+                var end = params.vertex_count;
+                if (b + 1u < buckets) {
+                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
+                }
+                for (var e = start; e < end; e++) {
+                    let at = params.self_table.z + 4u * e;
+                    let listed = vec3<i32>(bitcast<i32>(self_hash_words[at]), bitcast<i32>(self_hash_words[at + 1u]),
+                                           bitcast<i32>(self_hash_words[at + 2u]));
+                    let j = self_hash_words[at + 3u];
+                    if (all(listed == c) & (j != i)) {
+                        if (apart_at_rest(i, j)) {
+                            let other = state_in(j);
+                            force += repulsion_force(x, other.x, v, other.v, params.vertex_mass, friction_dt);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    return force;
 }
 
 // Vertices along i of the block of the grid one workgroup updates (GpuTuning::
@@ -223,6 +261,9 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         if (EFFECT_WIND) {
             force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
         }
+        if (EFFECT_SELF_COLLISION) {
+            force += self_collision_force(i, x, v, friction_dt);
+        }
         // Against a moving collider, contact and friction act on the velocity relative to it.
         let other_forces = force;
         // RK4's last stage: the normal of a contact whose friction holds the vertex (it sticks).
@@ -255,11 +296,21 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             // v_c = v_p + Δt R/m, x_c = x_p + Δt v_c (semi-implicit Euler).
             v_new = v + force * (dt / mass);
             x_new = x + v_new * dt;
+            if (EFFECT_SELF_COLLISION) {
+                // The speed limit (self_collision.wgsl), on the substep's end.
+                x_new = limit_step(x, x_new);
+                v_new = limit_velocity(v_new);
+            }
         } else if (STAGE <= 2u) {
             // Verlet: a half kick, then (stage 1) a full drift.
             v_new = v + force * (half / mass);
             if (STAGE == 1u) {
                 x_new = x + v_new * dt;
+                if (EFFECT_SELF_COLLISION) {
+                    x_new = limit_step(x, x_new);
+                }
+            } else if (EFFECT_SELF_COLLISION) {
+                v_new = limit_velocity(v_new);
             }
         } else {
             // RK4 (see STAGE above): x, v here are the stage's state x_k, v_k.
@@ -286,6 +337,10 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
                         let d = x_new - x_start;
                         x_new = x_new - (d - stick_normal * dot(d, stick_normal));
                         v_new = stick_normal * dot(v_new, stick_normal);
+                    }
+                    if (EFFECT_SELF_COLLISION) {
+                        x_new = limit_step(x_start, x_new);
+                        v_new = limit_velocity(v_new);
                     }
                 } else {
                     rk4_scratch[slot + 2u] = vec4<f32>(sum_x + v * 2.0, 0.0);

@@ -20,6 +20,7 @@ override EFFECT_AIR_DRAG: bool = false;
 override EFFECT_WIND: bool = false;
 override EFFECT_MOVING_PINS: bool = false;
 override EFFECT_MOVING_COLLIDERS: bool = false;
+override EFFECT_SELF_COLLISION: bool = false;
 override WORKGROUP_SIZE: u32 = 256u;
 // Any spring kind at all (one constant, so the branch on it is a constant too).
 override ANY_SPRINGS: bool = EFFECT_STRUCTURAL || EFFECT_SHEAR || EFFECT_BEND;

@@ -2,7 +2,7 @@
 // declared once here and prepended to every WGSL module that uses them (the compute kernels and
 // the inspector's render.wgsl). A test reflects every such module against the Rust types.
 
-// cloth_gpu::layout::GpuSimParams (160 bytes).
+// cloth_gpu::layout::GpuSimParams (208 bytes).
 struct SimParams {
     gravity: vec4<f32>,      // m/s² (xyz)
     stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
@@ -20,6 +20,9 @@ struct SimParams {
     pin_velocity: vec4<f32>, // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
     pin_amplitude: vec4<f32>,// pins' oscillation amplitude, m (xyz)
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
+    self_contact: vec4<f32>, // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
+    self_hash: vec4<f32>,    // the hash's cell side, m; speed limit, m/s; grid spacing along u, v, m
+    self_table: vec4<u32>,   // buckets T; first block sum; first entry; blocks (cloth_gpu::layout::SelfHashTable)
 }
 
 // The colliders' uniform block holds this many (cloth_core::colliders::MAX_COLLIDERS; params

@@ -34,11 +34,14 @@ pub enum Effect {
     /// The colliders follow their `motion` instead of staying put (read as `MovingSpheres` too).
     #[serde(alias = "MovingSpheres")]
     MovingColliders,
+    /// Cloth vertices closer than the thickness push each other apart (`scene.self_collision`,
+    /// see [`crate::self_collision`]).
+    SelfCollision,
 }
 
 impl Effect {
     /// Every effect, in a stable order (the order of [`EffectSet::shader_constants`]).
-    pub const ALL: [Effect; 11] = [
+    pub const ALL: [Effect; 12] = [
         Effect::Gravity,
         Effect::StructuralSprings,
         Effect::ShearSprings,
@@ -50,6 +53,7 @@ impl Effect {
         Effect::Wind,
         Effect::MovingPins,
         Effect::MovingColliders,
+        Effect::SelfCollision,
     ];
 
     /// Name of the boolean shader constant that compiles this effect in or out
@@ -67,6 +71,7 @@ impl Effect {
             Effect::Wind => "EFFECT_WIND",
             Effect::MovingPins => "EFFECT_MOVING_PINS",
             Effect::MovingColliders => "EFFECT_MOVING_COLLIDERS",
+            Effect::SelfCollision => "EFFECT_SELF_COLLISION",
         }
     }
 

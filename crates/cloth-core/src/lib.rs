@@ -12,6 +12,7 @@
 //! * [`coloring`]: the springs in sets that share no vertex (XPBD's parallel projection order);
 //! * [`quantities`]: what a substep derives from a scene (masses, rest lengths, wind), once;
 //! * [`forces`]: the force model, one function per force;
+//! * [`self_collision`]: vertices closer than the thickness repel, found by a spatial hash;
 //! * [`motion`]: moving pins and colliders, and the gusting wind;
 //! * [`constraints`]: XPBD's constraint projections, one function per constraint;
 //! * [`reference`](mod@reference): the CPU reference stepper, the test oracle;
@@ -54,6 +55,7 @@ pub mod quantities;
 pub mod real;
 pub mod reference;
 pub mod scene;
+pub mod self_collision;
 pub mod simulator;
 pub mod springs;
 pub mod stability;

@@ -20,6 +20,9 @@ use crate::motion::{MotionOf, wind_velocity};
 use crate::quantities::SceneQuantities;
 use crate::real::{Real, Vec3};
 use crate::scene::Scene;
+use crate::self_collision::{
+    CellHash, SelfCollisionQuantities, apart_at_rest, limit_speed, repulsion_force, self_contact_correction,
+};
 use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
 
 /// Vertices per rayon task: below this, splitting costs more than it saves.
@@ -99,6 +102,47 @@ struct Params<R> {
     /// Grid vertices along u and v (the wind's normals).
     nx: usize,
     ny: usize,
+    /// The `SelfCollision` effect's parameters, when it is on.
+    self_collision: Option<SelfParams<R>>,
+}
+
+/// The parameters of self-collision in precision `R` (see [`crate::self_collision`]).
+#[derive(Clone, Copy, Debug)]
+struct SelfParams<R> {
+    /// Thickness `r`, m.
+    thickness: R,
+    /// `k_s`, N/m; `c_s`, N·s/m; `μ`.
+    stiffness: R,
+    damping: R,
+    friction: R,
+    /// `s_max`, m/s.
+    max_speed: R,
+    /// Grid spacing along u and v, m (the rest-distance filter).
+    spacing: [R; 2],
+    /// The hash: cell side (m), buckets, substeps between rebuilds.
+    cell: f64,
+    buckets: u32,
+    rebuild_interval: u64,
+}
+
+impl<R: Real> SelfParams<R> {
+    fn of(scene: &Scene) -> Option<Self> {
+        if !scene.effects.contains(Effect::SelfCollision) {
+            return None;
+        }
+        let q = SelfCollisionQuantities::of(scene);
+        Some(Self {
+            thickness: R::of(q.thickness),
+            stiffness: R::of(q.stiffness),
+            damping: R::of(q.damping),
+            friction: R::of(q.friction),
+            max_speed: R::of(q.max_speed),
+            spacing: [R::of(q.spacing[0]), R::of(q.spacing[1])],
+            cell: q.cell,
+            buckets: q.buckets,
+            rebuild_interval: q.rebuild_interval.max(1) as u64,
+        })
+    }
 }
 
 impl<R: Real> Params<R> {
@@ -121,6 +165,7 @@ impl<R: Real> Params<R> {
             pin_motion: MotionOf::of(&q.pin_motion),
             nx: q.resolution[0] as usize,
             ny: q.resolution[1] as usize,
+            self_collision: SelfParams::of(scene),
         }
     }
 
@@ -156,6 +201,10 @@ pub struct ReferenceSimulator<R: Real> {
     clock: R,
     max_penetration: R,
     substeps_run: u64,
+    /// The spatial hash of self-collision (empty without it), and whether the state changed
+    /// since it was built (a written state rebuilds it at the next substep).
+    hash: CellHash,
+    hash_stale: bool,
 }
 
 /// The `f32` reference: the oracle GPU results are compared with.
@@ -206,6 +255,8 @@ impl<R: Real> ReferenceSimulator<R> {
             clock: R::zero(),
             max_penetration: R::zero(),
             substeps_run: 0,
+            hash: CellHash::default(),
+            hash_stale: true,
             scene,
         }
     }
@@ -225,7 +276,8 @@ impl<R: Real> ReferenceSimulator<R> {
             variant_force_and_stick::<R, E> as ForceFn<R>,
             variant_predicted_velocity::<R, E> as PredictFn<R>,
         ));
-        StepContext { params: &self.params, force, predict, first: &self.first, ends: &self.ends, x, v, time }
+        let hash = self.params.self_collision.map(|_| &self.hash);
+        StepContext { params: &self.params, force, predict, first: &self.first, ends: &self.ends, x, v, time, hash }
     }
 
     /// Positions in this precision, m.
@@ -240,11 +292,28 @@ impl<R: Real> ReferenceSimulator<R> {
 
     /// Advances one substep of `Δt = scene.substep_dt()` with the scene's integrator.
     pub fn substep(&mut self) {
+        if let Some(s) = &self.params.self_collision
+            && (self.hash_stale || self.substeps_run % s.rebuild_interval == 0)
+        {
+            self.hash = CellHash::build(&self.positions, s.cell, s.buckets);
+            self.hash_stale = false;
+        }
+        // The speed limit applies at the substep's end (velocity Verlet applies it itself, its
+        // drift before its second kick).
+        let limited = self.scene.integrator != Integrator::VelocityVerlet;
+        let start = self.params.self_collision.filter(|_| limited).map(|_| self.positions.clone());
         match self.scene.integrator {
             Integrator::SemiImplicitEuler => self.euler_substep(),
             Integrator::VelocityVerlet => self.verlet_substep(),
             Integrator::RungeKutta4 => self.rk4_substep(),
             Integrator::Xpbd => self.xpbd_substep(),
+        }
+        if let (Some(s), Some(start)) = (&self.params.self_collision, start) {
+            let (max_speed, dt) = (s.max_speed, self.params.dt);
+            for i in (0..start.len()).filter(|&i| !self.pinned[i]) {
+                (self.positions[i], self.velocities[i]) =
+                    limit_speed(start[i], self.positions[i], self.velocities[i], max_speed, dt);
+            }
         }
         let depth = self.deepest_penetration();
         if depth > self.max_penetration {
@@ -305,12 +374,24 @@ impl<R: Real> ReferenceSimulator<R> {
         let f1 = self.forces(&self.positions, &self.velocities, t, half);
         let mut v_half = self.offset(&self.velocities, &f1, kick);
         let mut x_new = self.offset(&self.positions, &v_half, h);
+        if let Some(s) = &p.self_collision {
+            // The speed limit on the drift, before the second kick reads the positions (as the
+            // GPU's two stages do); on the velocity at the end.
+            for (i, x) in x_new.iter_mut().enumerate().filter(|(i, _)| !self.pinned[*i]) {
+                *x = limit_speed(self.positions[i], *x, Vec3::zero(), s.max_speed, h).0;
+            }
+        }
         self.move_pins(&mut x_new, &mut v_half, t, t1);
         let f2 = self.forces(&x_new, &v_half, t1, half);
         let mut v_new = self.offset(&v_half, &f2, kick);
         let (_, pin_velocity) = self.params.pin_step(t1, t1, self.moving_pins());
         for (v, _) in v_new.iter_mut().zip(&self.pinned).filter(|(_, pinned)| **pinned) {
             *v = pin_velocity;
+        }
+        if let Some(s) = &self.params.self_collision {
+            for (v, _) in v_new.iter_mut().zip(&self.pinned).filter(|(_, pinned)| !**pinned) {
+                *v = limit_speed(Vec3::zero(), Vec3::zero(), *v, s.max_speed, h).1;
+            }
         }
         self.positions = x_new;
         self.velocities = v_new;
@@ -425,6 +506,9 @@ impl<R: Real> ReferenceSimulator<R> {
                 );
                 (x[a], x[b]) = (x_a, x_b);
             }
+            if let Some(s) = &p.self_collision {
+                self.project_self_contacts(&mut x, &x0, s);
+            }
             for (i, xi) in x.iter_mut().enumerate() {
                 if self.pinned[i] {
                     continue;
@@ -465,6 +549,40 @@ impl<R: Real> ReferenceSimulator<R> {
         self.positions = x;
         self.velocities = v;
         self.clock = t1;
+    }
+
+    /// XPBD's self-contacts, one Jacobi sweep: every free vertex's corrections
+    /// ([`self_contact_correction`]) for the vertices the hash lists near it, computed from `x`
+    /// and averaged, then applied together (the GPU's one invocation per vertex).
+    fn project_self_contacts(&self, x: &mut [Vec3<R>], x0: &[Vec3<R>], s: &SelfParams<R>) {
+        let w = R::one() / self.params.mass;
+        let nx = self.params.nx;
+        let (pinned, hash) = (&self.pinned, &self.hash);
+        let corrections: Vec<Vec3<R>> = (0..x.len())
+            .into_par_iter()
+            .with_min_len(PARALLEL_CHUNK)
+            .map(|i| {
+                if pinned[i] {
+                    return Vec3::zero();
+                }
+                let (mut sum, mut count) = (Vec3::zero(), R::zero());
+                hash.for_each_near(x[i], s.buckets, |j| {
+                    if j != i && apart_at_rest(i, j, nx, s.spacing, s.thickness) {
+                        let w_j = if pinned[j] { R::zero() } else { w };
+                        if let Some(c) =
+                            self_contact_correction(x[i], x[j], x0[i], x0[j], w, w_j, s.thickness, s.friction)
+                        {
+                            sum += c;
+                            count = count + R::one();
+                        }
+                    }
+                });
+                if count > R::zero() { sum * (R::one() / count) } else { Vec3::zero() }
+            })
+            .collect();
+        for (xi, c) in x.iter_mut().zip(corrections) {
+            *xi += c;
+        }
     }
 
     /// The model's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).
@@ -524,6 +642,8 @@ struct StepContext<'a, R: Real> {
     v: &'a [Vec3<R>],
     /// Time of the state `(x, v)`, s.
     time: R,
+    /// The spatial hash, with `SelfCollision`.
+    hash: Option<&'a CellHash>,
 }
 
 /// The effects of variant `E` as constants (bit `k` of `E` is `VARIANT_EFFECTS[k]`).
@@ -552,6 +672,32 @@ impl<R: Real> StepContext<'_, R> {
         let normal = grid_normal(self.x, i, p.nx, p.ny);
         let wind = wind_velocity(p.wind, p.gust_amplitude, p.gust_omega, self.time);
         wind_force(normal, v, wind, p.wind_coefficient_area)
+    }
+
+    /// The self-collision force on free vertex `i`, N: the repulsion of every vertex the hash
+    /// lists near it that is closer than the thickness and apart at rest
+    /// ([`crate::self_collision`]), summed in the hash's order.
+    fn self_collision_force(&self, hash: &CellHash, s: &SelfParams<R>, i: usize, friction_dt: R) -> Vec3<R> {
+        let p = self.params;
+        let (x, v) = (self.x[i], self.v[i]);
+        let mut force = Vec3::zero();
+        hash.for_each_near(x, s.buckets, |j| {
+            if j != i && apart_at_rest(i, j, p.nx, s.spacing, s.thickness) {
+                force += repulsion_force(
+                    x,
+                    self.x[j],
+                    v,
+                    self.v[j],
+                    s.thickness,
+                    s.stiffness,
+                    s.damping,
+                    s.friction,
+                    p.mass,
+                    friction_dt,
+                );
+            }
+        });
+        force
     }
 
     /// XPBD's prediction of free vertex `i`'s velocity over the substep, m/s (see
@@ -615,6 +761,9 @@ fn variant_force_and_stick<R: Real, const E: u16>(
     }
     if Variant::<E>::WIND {
         force += ctx.wind_force(i, v);
+    }
+    if let (Some(hash), Some(s)) = (ctx.hash, &p.self_collision) {
+        force += ctx.self_collision_force(hash, s, i, friction_dt);
     }
     // Contact and friction: R_o, the resultant of the other forces, is the force so far.
     // Against a moving collider they act on the velocity relative to it.
@@ -683,6 +832,8 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
         scene.validate()?;
         self.params = Params::new(scene);
         self.scene = scene.clone();
+        // The thickness may have changed the hash's cells.
+        self.hash_stale = true;
         Ok(())
     }
 
@@ -701,6 +852,7 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
     fn write_state(&mut self, state: &ClothState) -> Result<(), SimError> {
         check_state_size(self.positions.len(), state)?;
         self.positions = state.positions.iter().map(|p| Vec3::from_f32(*p)).collect();
+        self.hash_stale = true;
         self.velocities = state.velocities.iter().map(|v| Vec3::from_f32(*v)).collect();
         self.time_s = state.time_s;
         self.clock = R::of(state.time_s as f32 as f64);

@@ -23,6 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::colliders::ColliderSpec;
 use crate::effects::EffectSet;
+use crate::self_collision::SelfCollisionSpec;
 
 /// A complete simulation set-up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -52,6 +53,9 @@ pub struct Scene {
     pub integrator: crate::integrator::Integrator,
     /// The effects this scene simulates. Default: the mass-spring model's (everything but air drag and the driven effects).
     pub effects: EffectSet,
+    /// The parameters of the `SelfCollision` effect (see [`crate::self_collision`]). Default:
+    /// [`SelfCollisionSpec::default`].
+    pub self_collision: SelfCollisionSpec,
 }
 
 impl Default for Scene {
@@ -68,6 +72,7 @@ impl Default for Scene {
             time: TimeSpec::default(),
             integrator: crate::integrator::Integrator::default(),
             effects: EffectSet::default(),
+            self_collision: SelfCollisionSpec::default(),
         }
     }
 }
@@ -91,6 +96,7 @@ struct SceneFile {
     time: TimeSpec,
     integrator: crate::integrator::Integrator,
     effects: EffectSet,
+    self_collision: SelfCollisionSpec,
 }
 
 /// A field that is present (RON writes a list, not `Some(list)`).
@@ -114,6 +120,7 @@ impl Default for SceneFile {
             time: s.time,
             integrator: s.integrator,
             effects: s.effects,
+            self_collision: s.self_collision,
         }
     }
 }
@@ -138,6 +145,7 @@ impl From<SceneFile> for Scene {
             time: f.time,
             integrator: f.integrator,
             effects: f.effects,
+            self_collision: f.self_collision,
         }
     }
 }

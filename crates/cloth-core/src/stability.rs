@@ -11,7 +11,8 @@
 //! ```
 //!
 //! Every collider adds its penalty stiffness `k_c` to `Σk` (once, not doubled: the collider
-//! does not move with the vertex; a vertex can touch all of them at once). Masses are equal, so the most connected vertex (the grid's centre) sets
+//! does not move with the vertex; a vertex can touch all of them at once). Self-collision adds
+//! `2 k_s` for each of `CONTACTS_PER_VERTEX` contacts (the other vertex moves too). Masses are equal, so the most connected vertex (the grid's centre) sets
 //! the bound.
 
 use crate::effects::Effect;
@@ -80,6 +81,12 @@ pub fn stiffness_and_damping_rates(scene: &Scene) -> (f64, f64) {
             k_sum += s.stiffness;
             c_sum += s.damping;
         }
+    }
+    if scene.effects.contains(Effect::SelfCollision) {
+        // Each self-contact is a spring both ends move against.
+        let contacts = 2.0 * crate::self_collision::CONTACTS_PER_VERTEX;
+        k_sum += contacts * scene.self_collision.stiffness;
+        c_sum += contacts * scene.self_collision.damping;
     }
     let mut damping_rate = c_sum / m;
     if scene.effects.contains(Effect::AirDrag) {

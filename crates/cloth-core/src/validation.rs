@@ -187,6 +187,62 @@ impl Checker {
         self.non_negative(&format!("{field}.frequency"), m.frequency, "Hz");
     }
 
+    /// The `self_collision` field, and what the speed limit needs of the substep: a vertex at the
+    /// limit moves at most half the thickness a substep, and moving pins (which the limit does
+    /// not hold back) go no faster than it.
+    fn self_collision(&mut self, scene: &Scene) {
+        let s = &scene.self_collision;
+        let before = self.problems.len() + self.more;
+        match s.thickness {
+            crate::self_collision::Thickness::Spacings(f) => {
+                self.positive("self_collision.thickness.Spacings", f, "(grid spacings)")
+            }
+            crate::self_collision::Thickness::Meters(m) => self.positive("self_collision.thickness.Meters", m, "m"),
+        }
+        self.non_negative("self_collision.stiffness", s.stiffness, "N/m");
+        self.non_negative("self_collision.damping", s.damping, "N·s/m");
+        self.non_negative("self_collision.friction", s.friction, "(dimensionless)");
+        self.positive("self_collision.max_speed", s.max_speed, "m/s");
+        if s.rebuild_interval == 0 {
+            self.fail(
+                "self_collision.rebuild_interval",
+                "is 0 substeps; the hash is rebuilt every rebuild_interval substeps",
+                "give 1 (every substep) or more",
+            );
+        }
+        if self.problems.len() + self.more != before || self.problems.iter().any(|p| p.field.starts_with("time")) {
+            return;
+        }
+        let q = crate::self_collision::SelfCollisionQuantities::of(scene);
+        let dt = scene.substep_dt();
+        if dt.is_finite() && 2.0 * q.max_speed * dt > q.thickness {
+            self.fail(
+                "self_collision.max_speed",
+                format!(
+                    "is {} m/s: at the limit a vertex moves {:.3e} m a substep, more than half the thickness, {:.3e} m,                      so it could pass through another layer",
+                    q.max_speed,
+                    q.max_speed * dt,
+                    q.thickness / 2.0
+                ),
+                format!(
+                    "lower self_collision.max_speed to at most {:.3e} m/s, thicken the cloth, or take more substeps",
+                    q.thickness / (2.0 * dt)
+                ),
+            );
+        }
+        let pins = scene.cloth.pin_motion.max_speed();
+        if scene.effects.contains(Effect::MovingPins) && pins > q.max_speed {
+            self.fail(
+                "cloth.pin_motion",
+                format!(
+                    "moves the pins at up to {pins:.3} m/s, faster than self_collision.max_speed, {} m/s (the spatial                      hash's margin assumes no vertex is faster)",
+                    q.max_speed
+                ),
+                "slow the pins' motion or raise self_collision.max_speed",
+            );
+        }
+    }
+
     fn spring(&mut self, field: &str, s: &SpringSpec) {
         self.non_negative(&format!("{field}.stiffness"), s.stiffness, "N/m");
         self.non_negative(&format!("{field}.damping"), s.damping, "N·s/m");
@@ -321,6 +377,9 @@ impl Scene {
                 "Friction is listed without Contact; friction acts only in contact",
                 "add Contact or remove Friction",
             );
+        }
+        if self.effects.contains(Effect::SelfCollision) {
+            c.self_collision(self);
         }
         if c.more > 0 {
             let message = format!("{} more problem(s) not listed", c.more);

@@ -49,7 +49,7 @@ macro_rules! gpu_struct {
 }
 
 gpu_struct! {
-    /// Simulation parameters, one uniform buffer (160 bytes). Every field can change between
+    /// Simulation parameters, one uniform buffer (208 bytes). Every field can change between
     /// frames without rebuilding a pipeline.
     GpuSimParams as "SimParams" {
         /// Gravitational acceleration, m/s² (xyz; w unused).
@@ -85,6 +85,46 @@ gpu_struct! {
         /// Rest lengths, m: structural along u, along v, shear (bend: exactly twice the
         /// structural ones). The kernels compute the springs from the grid with these.
         rest_lengths: [f32; 4],
+        /// Self-collision: thickness `r`, m; stiffness `k_s`, N/m; damping `c_s`, N·s/m;
+        /// friction `μ` (`cloth_core::self_collision`).
+        self_contact: [f32; 4],
+        /// Self-collision: the hash's cell side `h`, m; the speed limit `s_max`, m/s; the grid
+        /// spacing along u and v, m (the rest-distance filter).
+        self_hash: [f32; 4],
+        /// The hash table in its buffer ([`SelfHashTable`]): buckets `T`, the index of the
+        /// first block sum, the index of the first entry, the number of blocks.
+        self_table: [u32; 4],
+    }
+}
+
+/// Buckets a workgroup of the hash's prefix sum scans (`shaders/*/self_hash.*`).
+pub const HASH_SCAN_BLOCK: u32 = 256;
+
+/// Where the spatial hash of self-collision lives in its `u32` buffer: `T` bucket starts (each
+/// relative to its block), one sum per block of [`HASH_SCAN_BLOCK`] buckets (made absolute by the
+/// second scan), then four words an entry (the cell's `x`, `y`, `z` and the vertex), one entry a
+/// vertex. A bucket's entries start at `start[b] + block_sum[b / 256]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SelfHashTable {
+    /// Buckets `T`.
+    pub buckets: u32,
+    /// Blocks of the prefix sum, `⌈T / 256⌉`.
+    pub blocks: u32,
+    /// Index of the first block sum.
+    pub block_sums: u32,
+    /// Index of the first entry's first word.
+    pub entries: u32,
+    /// Words of the buffer.
+    pub words: u64,
+}
+
+impl SelfHashTable {
+    /// The table of `scene`'s vertices.
+    pub fn of(scene: &Scene) -> Self {
+        let buckets = cloth_core::self_collision::SelfCollisionQuantities::of(scene).buckets;
+        let blocks = buckets.div_ceil(HASH_SCAN_BLOCK);
+        let entries = buckets + blocks;
+        Self { buckets, blocks, block_sums: buckets, entries, words: entries as u64 + 4 * scene.vertex_count() as u64 }
     }
 }
 
@@ -192,6 +232,8 @@ impl GpuSimParams {
         let v4 = |v: [f64; 3], w: f64| [f(v[0]), f(v[1]), f(v[2]), f(w)];
         let [nx, ny] = q.resolution;
         let pins = &q.pin_motion;
+        let s = cloth_core::self_collision::SelfCollisionQuantities::of(scene);
+        let table = SelfHashTable::of(scene);
         Self {
             gravity: v4(q.gravity, 0.0),
             stiffness: v4(q.stiffness, 0.0),
@@ -209,6 +251,9 @@ impl GpuSimParams {
             pin_velocity: v4(pins.velocity, pins.angular_frequency()),
             pin_amplitude: v4(pins.amplitude, 0.0),
             rest_lengths: v4(q.rest_lengths, 0.0),
+            self_contact: [f(s.thickness), f(s.stiffness), f(s.damping), f(s.friction)],
+            self_hash: [f(s.cell), f(s.max_speed), f(s.spacing[0]), f(s.spacing[1])],
+            self_table: [table.buckets, table.block_sums, table.entries, table.blocks],
         }
     }
 }

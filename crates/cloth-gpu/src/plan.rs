@@ -9,8 +9,11 @@ use cloth_core::integrator::XPBD_ITERATIONS;
 use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
-use crate::layout::{COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSimParams, MAX_COLLIDERS};
-use crate::schedule::{PackedPasses, Pass, Schedule, TiledPass};
+use crate::layout::{
+    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSimParams, HASH_SCAN_BLOCK, MAX_COLLIDERS,
+    SelfHashTable,
+};
+use crate::schedule::{HashRebuild, PackedPasses, Pass, Schedule, TiledPass};
 use crate::tuning::{GpuTuning, invalid};
 
 /// Index into [`Plan::buffers`].
@@ -74,6 +77,8 @@ pub enum Shader {
     Xpbd,
     /// `copy`: the copy kernel that measures the memory bandwidth ([`crate::bandwidth`]).
     Copy,
+    /// `self_hash`: the four passes that rebuild self-collision's spatial hash.
+    SelfHash,
 }
 
 /// A kernel: a shader module and the layout of its bindings, shared by its pipelines.
@@ -115,6 +120,8 @@ pub enum Constant {
     TileCells,
     /// Substeps per tiled dispatch.
     FusedSubsteps,
+    /// `self_hash`'s pass (0 count, 1 scan, 2 sums, 3 scatter).
+    HashPass,
 }
 
 impl Constant {
@@ -138,6 +145,7 @@ impl Constant {
             Constant::PackedIn => ("PACKED_IN", 108),
             Constant::PackedOut => ("PACKED_OUT", 109),
             Constant::ReversedOrder => ("REVERSED_ORDER", 110),
+            Constant::HashPass => ("HASH_PASS", 111),
         }
     }
 
@@ -247,8 +255,15 @@ const STATE_BINDINGS: [Binding; 7] = [PARAMS, COLLIDERS, READ, READ, WRITE, WRIT
 /// same out, the pin bits.
 const STEP_EXTRA_BINDINGS: [Binding; 6] = [WRITE, READ, READ, WRITE, WRITE, READ];
 
-/// The last binding of every cloth kernel: the mesh colliders' distance fields.
+/// The mesh colliders' distance fields: the last binding of the tiled and XPBD kernels, binding
+/// 13 of `cloth_step`.
 const DISTANCE_FIELDS: Binding = READ;
+
+/// `cloth_step`'s binding 14: self-collision's spatial hash ([`SelfHashTable`]).
+const SELF_HASH: Binding = READ;
+
+/// `self_hash`'s bindings: the parameters, the positions it lists, the bucket counts, the table.
+const SELF_HASH_BINDINGS: [Binding; 4] = [PARAMS, READ, WRITE, WRITE];
 
 /// `xpbd`'s bindings: parameters, colliders, constraints, positions and velocities in, positions
 /// and velocities out, the deepest penetration, the multipliers, the normal corrections, the
@@ -282,8 +297,14 @@ impl Builder<'_> {
     }
 
     /// A pipeline with the scene's effects, the workgroup size (but for the tiled kernel, whose
-    /// workgroup is its tile) and the kernel's own constants.
+    /// workgroup is its tile) and the kernel's own constants; the hash's kernel takes its own
+    /// constants only (no effect applies to it, and its workgroup is its scan's block).
     fn pipeline(&mut self, kernel: KernelId, label: &str, own: &[(Constant, u32)]) -> PipelineId {
+        if self.plan.kernels[kernel].shader == Shader::SelfHash {
+            let constants = own.to_vec();
+            self.plan.pipelines.push(PipelineDesc { kernel, label: format!("cloth {label} pipeline"), constants });
+            return self.plan.pipelines.len() - 1;
+        }
         let mut constants: Vec<(Constant, u32)> =
             Effect::ALL.iter().map(|&e| (Constant::Effect(e), u32::from(self.scene.effects.contains(e)))).collect();
         constants.extend(
@@ -346,6 +367,13 @@ impl Plan {
             max_penetration: b.buffer("max penetration", storage, 4, None),
         };
         b.plan.state = state;
+        if scene.integrator == Integrator::Xpbd && scene.effects.contains(Effect::SelfCollision) {
+            return Err(SimError::Unsupported {
+                backend,
+                what: "self-collision under XPBD".into(),
+                fix: "use another integrator, or the cpu backend".into(),
+            });
+        }
         b.plan.schedule = match scene.integrator {
             Integrator::Xpbd => xpbd(&mut b, &model, limits),
             _ => force_based(&mut b, &positions, &velocities, limits)?,
@@ -381,7 +409,11 @@ fn force_based(
     let storage = BufferUsage::Storage;
     let s = b.plan.state;
     let (p, v) = (s.positions, s.velocities);
-    let tile = TileConfig::choose(tuning, scene.integrator, nx * ny, limits)?;
+    // Self-collision reads other vertices anywhere in the grid and the hash of the vec4 state: it
+    // runs neither tiled nor on the packed state.
+    let self_collision = scene.effects.contains(Effect::SelfCollision);
+    let tile = if self_collision { None } else { TileConfig::choose(tuning, scene.integrator, nx * ny, limits)? };
+    let (hash_counts, hash_words) = self_hash_buffers(b);
     let rk4 = scene.integrator == Integrator::RungeKutta4;
     let rk4_scratch = b.buffer("RK4 scratch", storage, if rk4 { 64 * n } else { 64 }, None);
     // Placeholders for the packed bindings of the passes that do not use them: a read-only one,
@@ -390,8 +422,10 @@ fn force_based(
     let xv_out = b.buffer("packed-state placeholder, (x, v.x) out", storage, 64, None);
     let v_out = b.buffer("packed-state placeholder, (v.y, v.z) out", storage, 64, None);
     let unpacked = [read, read, xv_out, v_out, read];
-    let kernel =
-        b.kernel(Shader::Step, &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS, &[DISTANCE_FIELDS]].concat());
+    let kernel = b.kernel(
+        Shader::Step,
+        &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS, &[DISTANCE_FIELDS, SELF_HASH]].concat(),
+    );
     let blocks = BlockGrid::new(tuning, nx, ny, limits.max_workgroups_per_dimension);
     let w = blocks.width;
     let common = [s.params, s.colliders];
@@ -400,7 +434,7 @@ fn force_based(
             &common[..],
             &[x_in, v_in, x_out, v_out, s.max_penetration, rk4_scratch],
             &packed[..],
-            &[s.distance_fields],
+            &[s.distance_fields, hash_words],
         ]
         .concat();
         b.group(kernel, label, buffers)
@@ -442,7 +476,7 @@ fn force_based(
                     pass: Pass { pipeline, groups, workgroups, dynamic_offset: None },
                     substeps: tile.substeps,
                 });
-            } else if tuning.packed_state {
+            } else if tuning.packed_state && !self_collision {
                 schedule.packed = Some(packed(b, &group, kernel, w, blocks.workgroups, positions));
             }
         }
@@ -486,7 +520,54 @@ fn force_based(
             }
         }
     }
+    if self_collision {
+        schedule.rebuild = Some(hash_rebuild(b, hash_counts, hash_words, limits));
+    }
     Ok(schedule)
+}
+
+/// Self-collision's bucket counts and table ([`SelfHashTable`]), sized for the scene with
+/// `SelfCollision` and 16-byte placeholders without.
+fn self_hash_buffers(b: &mut Builder) -> (BufferId, BufferId) {
+    let storage = BufferUsage::Storage;
+    if !b.scene.effects.contains(Effect::SelfCollision) {
+        let counts = b.buffer("self-collision counts placeholder", storage, 16, None);
+        let words = b.buffer("self-collision hash placeholder", storage, 16, None);
+        return (counts, words);
+    }
+    let table = SelfHashTable::of(b.scene);
+    let counts = b.buffer("self-collision bucket counts", storage, 4 * table.buckets as u64, None);
+    let words = b.buffer("self-collision hash", storage, 4 * table.words, None);
+    (counts, words)
+}
+
+/// The four passes that rebuild the hash from state `k`'s positions (`self_hash`).
+fn hash_rebuild(b: &mut Builder, counts: BufferId, words: BufferId, limits: &DeviceLimits) -> HashRebuild {
+    let kernel = b.kernel(Shader::SelfHash, &SELF_HASH_BINDINGS);
+    let s = b.plan.state;
+    let groups = [0, 1].map(|k| {
+        b.group(kernel, format!("self-collision hash of {}", NAME[k]), vec![s.params, s.positions[k], counts, words])
+    });
+    let table = SelfHashTable::of(b.scene);
+    let n = b.scene.vertex_count() as u32;
+    let max = limits.max_workgroups_per_dimension;
+    let workgroups = [
+        spilled_workgroups(n, HASH_SCAN_BLOCK, max),
+        [table.blocks, 1],
+        [1, 1],
+        spilled_workgroups(n, HASH_SCAN_BLOCK, max),
+    ];
+    let passes = ["count", "scan", "sums", "scatter"]
+        .iter()
+        .enumerate()
+        .map(|(pass, what)| {
+            let label = format!("self-collision hash {what}");
+            let pipeline = b.pipeline(kernel, &label, &[(Constant::HashPass, pass as u32)]);
+            Pass { pipeline, groups, workgroups: workgroups[pass], dynamic_offset: None }
+        })
+        .collect();
+    let interval = cloth_core::self_collision::SelfCollisionQuantities::of(b.scene).rebuild_interval.max(1);
+    HashRebuild { passes, interval }
 }
 
 /// Semi-implicit Euler's packed passes (`geometry`'s packed state).
@@ -605,5 +686,5 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
         }
     }
     substep.push(pass(3, vertices, 0));
-    Schedule { substep, tiled: None, packed: None }
+    Schedule { substep, tiled: None, packed: None, rebuild: None }
 }

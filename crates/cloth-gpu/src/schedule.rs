@@ -7,6 +7,11 @@
 //! | RK4 | 4: `STAGE = 3..=6`, one per stage |
 //! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the colliders); finish |
 //!
+//! With `SelfCollision`, the four dispatches that rebuild the spatial hash (`self_hash`: count,
+//! scan, sums, scatter) come before every `rebuild_interval`-th substep, counted from the
+//! simulation's first, and before the next substep after the state or the parameters were
+//! written (the speed limit keeps the hash correct between rebuilds only for states it ran).
+//!
 //! Every substep reads the state buffer `k` that is current and leaves the new state in buffer
 //! `1 − k`; each pass has a bind group per `k`.
 
@@ -82,9 +87,21 @@ pub struct TiledPass {
     pub substeps: u32,
 }
 
+/// The dispatches that rebuild self-collision's spatial hash from state `k`'s positions, and how
+/// many substeps apart.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct HashRebuild {
+    /// Count, scan, sums, scatter.
+    pub passes: Vec<Pass>,
+    /// Substeps between rebuilds, `K` (at least 1).
+    pub interval: u32,
+}
+
 /// The dispatches of a simulation's frames.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Schedule {
+    /// Self-collision's hash rebuild, with `SelfCollision` (never with `tiled` or `packed`).
+    pub rebuild: Option<HashRebuild>,
     /// The dispatches of one substep, in order.
     pub substep: Vec<Pass>,
     /// Semi-implicit Euler's fused substeps, where the tiled kernel runs.
@@ -95,8 +112,26 @@ pub struct Schedule {
 
 impl Schedule {
     /// Appends the dispatches of `substeps` substeps starting from state `current` to `out`, and
-    /// returns the state current after them.
+    /// returns the state current after them (the simulation's first substeps, for a schedule
+    /// that rebuilds a hash: see [`Schedule::frame_from`]).
     pub fn frame(&self, substeps: u64, current: usize, out: &mut Vec<Dispatch>) -> usize {
+        self.frame_from(0, false, substeps, current, out)
+    }
+
+    /// [`Schedule::frame`] for substeps `first, first + 1, …` of the simulation; `stale`: the
+    /// hash must be rebuilt before the first of them whatever its number.
+    pub fn frame_from(&self, first: u64, stale: bool, substeps: u64, current: usize, out: &mut Vec<Dispatch>) -> usize {
+        if let Some(rebuild) = &self.rebuild {
+            let mut k = current;
+            for s in 0..substeps {
+                if (stale && s == 0) || (first + s) % rebuild.interval as u64 == 0 {
+                    out.extend(rebuild.passes.iter().map(|pass| pass.on(k)));
+                }
+                out.extend(self.substep.iter().map(|pass| pass.on(k)));
+                k = 1 - k;
+            }
+            return k;
+        }
         if let Some(p) = &self.packed
             && substeps >= 2
         {

@@ -101,6 +101,9 @@ pub struct GpuSimulator<B: GpuBackend> {
     pending_seconds: f64,
     time_s: f64,
     substeps_run: u64,
+    /// Whether the state or the parameters were written since the last frame: self-collision's
+    /// hash is rebuilt before the next substep.
+    hash_stale: bool,
     last_advance: AdvanceCounts,
     /// Last, so that it is dropped after every object made on it.
     backend: B,
@@ -166,6 +169,7 @@ impl<B: GpuBackend> GpuSimulator<B> {
             pending_seconds: 0.0,
             time_s: 0.0,
             substeps_run: 0,
+            hash_stale: true,
             last_advance: AdvanceCounts::default(),
             backend,
         })
@@ -233,7 +237,9 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
             self.last_advance.host_waits = 1;
         }
         self.dispatches.clear();
-        self.current = self.schedule.frame(substeps, self.current, &mut self.dispatches);
+        self.current =
+            self.schedule.frame_from(self.substeps_run, self.hash_stale, substeps, self.current, &mut self.dispatches);
+        self.hash_stale = false;
         let (dispatches, pipelines, bind_groups) = (&self.dispatches, &self.pipelines, &self.bind_groups);
         self.backend.submit(Frame { timestamps: self.timed, dispatches, pipelines, bind_groups })?;
         self.timed = self.timed.map(|pairs| pairs + 1);
@@ -256,6 +262,7 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
         self.backend.write(params, bytemuck::bytes_of(&GpuSimParams::of(scene)))?;
         self.backend.write(colliders, bytemuck::cast_slice(&GpuCollider::of_scene(scene)))?;
         self.scene = scene.clone();
+        self.hash_stale = true;
         Ok(())
     }
 
@@ -278,6 +285,7 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
         self.backend.write(p, bytemuck::cast_slice(&positions))?;
         self.backend.write(v, bytemuck::cast_slice(&velocities))?;
         self.time_s = state.time_s;
+        self.hash_stale = true;
         Ok(())
     }
 

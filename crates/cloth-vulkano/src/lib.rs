@@ -29,6 +29,9 @@ pub const TILED_STEP_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/cl
 /// SPIR-V of the XPBD passes, compiled from `shaders/glsl/xpbd.comp`.
 pub const XPBD_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/xpbd.spv"));
 
+/// SPIR-V of the passes that rebuild self-collision's spatial hash, from `shaders/glsl/self_hash.comp`.
+pub const SELF_HASH_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/self_hash.spv"));
+
 /// SPIR-V of the copy kernel that measures the memory bandwidth, from `shaders/glsl/copy.comp`.
 pub const COPY_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/copy.spv"));
 

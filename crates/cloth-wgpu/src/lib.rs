@@ -20,12 +20,21 @@ pub use context::{GpuContext, device_requirements, list_adapters};
 
 /// WGSL source of the force-based substep kernel: `layout.wgsl`, `colliders.wgsl` (the
 /// colliders' signed distances), `common.wgsl` (effect constants and force model),
-/// `cloth_step.wgsl`.
+/// `self_collision.wgsl`, `cloth_step.wgsl`.
 pub const STEP_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
     include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
+    include_str!("../../../shaders/wgsl/self_collision.wgsl"),
     include_str!("../../../shaders/wgsl/cloth_step.wgsl")
+);
+
+/// WGSL source of the passes that rebuild self-collision's spatial hash: `layout.wgsl`,
+/// `self_collision.wgsl`, `self_hash.wgsl`.
+pub const SELF_HASH_SHADER: &str = concat!(
+    include_str!("../../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../../shaders/wgsl/self_collision.wgsl"),
+    include_str!("../../../shaders/wgsl/self_hash.wgsl")
 );
 
 /// WGSL source of the tiled kernel that fuses several semi-implicit Euler substeps in one
