@@ -23,6 +23,7 @@ layout(constant_id = 101) const uint XPBD_PASS = 0u;
 #define DISTANCE_FIELDS_BINDING 11
 #include "layout.glsl"
 #include "forces.glsl"
+#include "self_collision.glsl"
 
 layout(set = 0, binding = 2, std430) readonly buffer Constraints { Constraint constraints[]; };
 // The state at the substep's start (w: 1 free, 0 pinned).
@@ -52,6 +53,79 @@ vec3 position_in(uint index) {
 }
 
 #include "grid.glsl"
+
+// Self-collision's spatial hash (self_hash.comp), and each vertex's averaged self-contact
+// correction of the current iteration, m (placeholders without SelfCollision).
+layout(set = 0, binding = 12, std430) readonly buffer SelfHashWords { uint self_hash_words[]; };
+layout(set = 0, binding = 13, std430) buffer SelfCorrections { vec4 self_corrections[]; };
+
+// XPBD's correction of free vertex i (inverse mass w_i) for its contact with vertex j (w_j, 0
+// when pinned), m, in xyz, and w = 1 where they touch (cloth_core::self_collision::
+// self_contact_correction): i's share w_i / (w_i + w_j) of the depth r − d along u, and friction
+// removing up to μ (r − d) of the pair's relative sliding since the substep's start.
+vec4 self_contact_correction(vec3 x_i, vec3 x_j, vec3 x0_i, vec3 x0_j, float w_i, float w_j) {
+    float r = params.self_contact.x;
+    vec3 delta = x_i - x_j;
+    float d2 = dot(delta, delta);
+    if (d2 >= r * r || d2 <= 0.0) {
+        return vec4(0.0);
+    }
+    float d = sqrt(d2);
+    vec3 u = delta * (1.0 / d);
+    float depth = r - d;
+    float share = w_i / (w_i + w_j);
+    vec3 correction = u * (depth * share);
+    vec3 slide = (x_i - x0_i) - (x_j - x0_j);
+    vec3 tangential = slide - u * dot(slide, u);
+    float len = sqrt(dot(tangential, tangential));
+    if (len > 0.0) {
+        correction -= tangential * (min(params.self_contact.w * depth, len) / len * share);
+    }
+    return vec4(correction, 1.0);
+}
+
+// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the 27 cells around
+// it, from the positions the springs left, averaged (cloth_core::reference's
+// project_self_contacts, cells in the same order).
+void self_contacts(uint i) {
+    vec4 p = positions_out[i];
+    if (p.w == 0.0) {
+        self_corrections[i] = vec4(0.0);
+        return;
+    }
+    vec3 x = p.xyz;
+    vec3 x0 = positions_in[i].xyz;
+    float w = 1.0 / params.vertex_mass;
+    vec4 sum = vec4(0.0);
+    ivec3 base = hash_cell(x);
+    uint buckets = params.self_table.x;
+    uint block_sums = params.self_table.y;
+    for (int dz = -1; dz <= 1; dz++) {
+        for (int dy = -1; dy <= 1; dy++) {
+            for (int dx = -1; dx <= 1; dx++) {
+                ivec3 c = base + ivec3(dx, dy, dz);
+                uint b = hash_bucket(c);
+                uint start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
+                uint end = params.vertex_count;
+                if (b + 1u < buckets) {
+                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
+                }
+                for (uint e = start; e < end; e++) {
+                    uint at = params.self_table.z + 4u * e;
+                    ivec3 listed = ivec3(int(self_hash_words[at]), int(self_hash_words[at + 1u]),
+                                         int(self_hash_words[at + 2u]));
+                    uint j = self_hash_words[at + 3u];
+                    if (listed == c && j != i && apart_at_rest(i, j)) {
+                        vec4 q = positions_out[j];
+                        sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, q.w * w);
+                    }
+                }
+            }
+        }
+    }
+    vec3 correction = sum.w > 0.0 ? sum.xyz * (1.0 / sum.w) : vec3(0.0);
+    self_corrections[i] = vec4(correction, 0.0);
+}
 
 // Δλ = (−C − α̃ λ) / (w_a + w_b + α̃), α̃ = 1/(k Δt²); the ends move by ±w Δλ n.
 void project_spring(inout vec3 x_a, inout vec3 x_b, float inverse_mass_a, float inverse_mass_b,
@@ -230,6 +304,10 @@ void project_colliders(uint i) {
     float t = velocities_in[i].w;
     float t_end = t + params.substep_dt;
     vec3 x = p.xyz;
+    if (EFFECT_SELF_COLLISION) {
+        // Pass 4's self-contact correction, applied to every vertex at once.
+        x = x + self_corrections[i].xyz;
+    }
     float correction = normal_corrections[i];
     for (uint s = 0u; s < params.collider_count; s++) {
         // Where the collider ends the substep, and the vertex's start carried along with it.
@@ -265,6 +343,12 @@ void finish(uint i) {
             }
         }
         v = (x - x0) * (1.0 / params.substep_dt);
+        if (EFFECT_SELF_COLLISION) {
+            // The speed limit (self_collision.glsl).
+            x = limit_step(x0, x);
+            v = limit_velocity(v);
+            positions_out[i] = vec4(x, p.w);
+        }
     }
     velocities_out[i] = vec4(v, t_end);
     if (EFFECT_CONTACT) {
@@ -291,8 +375,12 @@ void main() {
     if (XPBD_PASS == 0u) {
         predict(t);
     } else if (XPBD_PASS == 2u) {
-        if (EFFECT_CONTACT) {
+        if (EFFECT_CONTACT || EFFECT_SELF_COLLISION) {
             project_colliders(t);
+        }
+    } else if (XPBD_PASS == 4u) {
+        if (EFFECT_SELF_COLLISION) {
+            self_contacts(t);
         }
     } else {
         finish(t);

@@ -7,10 +7,13 @@
 //   then XPBD_ITERATIONS times:
 //     pass 1 (per spring)   project the springs of one colour (springs of a colour share no
 //                           vertex, so one invocation per spring needs no atomics), once per colour;
-//     pass 2 (per vertex)   project the vertex out of the colliders (swept from its substep start,
-//                           so a long step cannot tunnel), summing the corrections;
-//   pass 3 (per vertex)     friction on the contacts' displacements, v = (x* − x)/Δt, deepest
-//                           penetration.
+//     pass 4 (per vertex)   with SelfCollision: the vertex's self-contact corrections, averaged
+//                           (Jacobi: every vertex reads the positions the springs left);
+//     pass 2 (per vertex)   apply the self-contact correction; project the vertex out of the
+//                           colliders (swept from its substep start, so a long step cannot
+//                           tunnel), summing the corrections;
+//   pass 3 (per vertex)     friction on the contacts' displacements, v = (x* − x)/Δt (with
+//                           SelfCollision, the speed limit), deepest penetration.
 // Units: m, kg, s, N/m.
 
 // Which pass this pipeline runs (see above).
@@ -40,6 +43,84 @@ fn position_in(index: u32) -> vec3<f32> {
 @group(0) @binding(10) var<uniform> color: ColorRange;
 // The mesh colliders' distance fields (colliders.wgsl), m.
 @group(0) @binding(11) var<storage, read> distance_fields: array<f32>;
+// Self-collision's spatial hash (self_hash.wgsl), and each vertex's averaged self-contact
+// correction of the current iteration, m (placeholders without SelfCollision).
+@group(0) @binding(12) var<storage, read> self_hash_words: array<u32>;
+@group(0) @binding(13) var<storage, read_write> self_corrections: array<vec4<f32>>;
+
+// XPBD's correction of free vertex i (inverse mass w_i) for its contact with vertex j (w_j, 0
+// when pinned), m, and whether they touch (cloth_core::self_collision::self_contact_correction):
+// i's share w_i / (w_i + w_j) of the depth r − d along u, and friction removing up to μ (r − d)
+// of the pair's relative sliding since the substep's start.
+fn self_contact_correction(x_i: vec3<f32>, x_j: vec3<f32>, x0_i: vec3<f32>, x0_j: vec3<f32>, w_i: f32,
+                           w_j: f32) -> vec4<f32> {
+    let r = params.self_contact.x;
+    let delta = x_i - x_j;
+    let d2 = dot(delta, delta);
+    if ((d2 >= r * r) | (d2 <= 0.0)) {
+        return vec4<f32>(0.0);
+    }
+    let d = sqrt(d2);
+    let u = delta * (1.0 / d);
+    let depth = r - d;
+    let share = w_i / (w_i + w_j);
+    var correction = u * (depth * share);
+    let slide = (x_i - x0_i) - (x_j - x0_j);
+    let tangential = slide - u * dot(slide, u);
+    let length = sqrt(dot(tangential, tangential));
+    if (length > 0.0) {
+        correction -= tangential * (min(params.self_contact.w * depth, length) / length * share);
+    }
+    return vec4<f32>(correction, 1.0);
+}
+
+// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the 27 cells around
+// it, from the positions the springs left, averaged (cloth_core::reference's
+// project_self_contacts, cells in the same order).
+fn self_contacts(i: u32) {
+    let p = positions_out[i];
+    if (p.w == 0.0) {
+        self_corrections[i] = vec4<f32>(0.0);
+        return;
+    }
+    let x = p.xyz;
+    let x0 = positions_in[i].xyz;
+    let w = 1.0 / params.vertex_mass;
+    var sum = vec4<f32>(0.0);
+    let base = hash_cell(x);
+    let buckets = params.self_table.x;
+    let block_sums = params.self_table.y;
+    for (var dz = -1; dz <= 1; dz++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let c = base + vec3<i32>(dx, dy, dz);
+                let b = hash_bucket(c);
+                let start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
+                var end = params.vertex_count;
+                if (b + 1u < buckets) {
+                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
+                }
+                for (var e = start; e < end; e++) {
+                    let at = params.self_table.z + 4u * e;
+                    let listed = vec3<i32>(bitcast<i32>(self_hash_words[at]), bitcast<i32>(self_hash_words[at + 1u]),
+                                           bitcast<i32>(self_hash_words[at + 2u]));
+                    let j = self_hash_words[at + 3u];
+                    if (all(listed == c) & (j != i)) {
+                        if (apart_at_rest(i, j)) {
+                            let q = positions_out[j];
+                            sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, q.w * w);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    var correction = vec3<f32>(0.0);
+    if (sum.w > 0.0) {
+        correction = sum.xyz * (1.0 / sum.w);
+    }
+    self_corrections[i] = vec4<f32>(correction, 0.0);
+}
 
 struct SpringProjection {
     x_a: vec3<f32>,
@@ -231,6 +312,10 @@ fn project_colliders(i: u32) {
     let t = velocities_in[i].w;
     let t_end = t + params.substep_dt;
     var x = p.xyz;
+    if (EFFECT_SELF_COLLISION) {
+        // Pass 4's self-contact correction, applied to every vertex at once.
+        x = x + self_corrections[i].xyz;
+    }
     var correction = normal_corrections[i];
     for (var s = 0u; s < params.collider_count; s++) {
         // Where the collider ends the substep, and the vertex's start carried along with it.
@@ -268,6 +353,12 @@ fn finish(i: u32) {
             }
         }
         v = (x - x0) * (1.0 / params.substep_dt);
+        if (EFFECT_SELF_COLLISION) {
+            // The speed limit (self_collision.wgsl).
+            x = limit_step(x0, x);
+            v = limit_velocity(v);
+            positions_out[i] = vec4<f32>(x, p.w);
+        }
     }
     velocities_out[i] = vec4<f32>(v, t_end);
     if (EFFECT_CONTACT) {
@@ -295,8 +386,13 @@ fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     switch XPBD_PASS {
         case 0u: { predict(t); }
         case 2u: {
-            if (EFFECT_CONTACT) {
+            if (EFFECT_CONTACT | EFFECT_SELF_COLLISION) {
                 project_colliders(t);
+            }
+        }
+        case 4u: {
+            if (EFFECT_SELF_COLLISION) {
+                self_contacts(t);
             }
         }
         default: { finish(t); }

@@ -413,6 +413,71 @@ fn an_absent_effect_equals_zero_strength(backend: &Backend) {
     }
 }
 
+/// A cloth folded onto itself, its two layers 0.8 thicknesses apart: self-collision pushes them
+/// apart from the first substep, and every backend follows the f32 reference. The 12 × 24 cloth
+/// lies flat at 0.5 m, rows 12 to 23 folded back over rows 0 to 11; no gravity, so the layers'
+/// repulsion moves it apart, with the fold's springs (without `SelfCollision` the reference ends
+/// elsewhere, so the case exercises it). Every integrator, 3 frames of 40 substeps. The GPU sums a
+/// vertex's repulsions in the order its hash's scatter listed them, which atomics decide, not in
+/// the reference's vertex order: the sums may round differently, by an ulp or so of a force,
+/// which the f32 tolerance covers over this run (XPBD: its per-substep tolerance, as elsewhere).
+/// On lavapipe the results are bit-exact.
+fn self_collision_matches_the_reference(backend: &Backend) {
+    use cloth_core::Integrator;
+    let (nx, ny) = (12u32, 24u32);
+    let mut scene = with_grid(scene("drape.ron"), [nx, ny]);
+    scene.cloth.size = [0.33, 0.69];
+    scene.effects = scene.effects.without(Effect::Gravity).without(Effect::Contact).without(Effect::Friction);
+    scene.effects = scene.effects.with(Effect::SelfCollision);
+    scene.time.substeps = Substeps::Fixed(40);
+    let spacing = scene.cloth.spacing()[0];
+    let thickness = 1.5 * spacing;
+    let gap = 0.8 * thickness;
+    // Row j of the folded cloth: rows below the fold at their place, the others mirrored back
+    // over them, `gap` higher.
+    let folded = ClothState {
+        time_s: 0.0,
+        positions: (0..ny)
+            .flat_map(|j| {
+                (0..nx).map(move |i| {
+                    let (row, height) = if j < ny / 2 { (j, 0.5) } else { (ny - 1 - j, 0.5 + gap) };
+                    [i as f32 * spacing as f32, height as f32, -(row as f32) * spacing as f32]
+                })
+            })
+            .collect(),
+        velocities: vec![[0.0; 3]; (nx * ny) as usize],
+    };
+    let run_folded = |sim: &mut dyn Simulator| {
+        sim.write_state(&folded).unwrap();
+        sim.advance(3).unwrap();
+        sim.read_state().unwrap()
+    };
+    for integrator in Integrator::ALL {
+        let scene = Scene { integrator, ..scene.clone() };
+        let Some(mut sim) = create(backend, &scene) else { return };
+        let state = run_folded(sim.as_mut());
+        let reference = run_folded(&mut CpuSimulator::new(&scene).unwrap());
+        let mut without = scene.clone();
+        without.effects = without.effects.without(Effect::SelfCollision);
+        let passing = run_folded(&mut CpuSimulator::new(&without).unwrap());
+        assert_eq!(state.non_finite_count(), 0, "{integrator:?}");
+        let d = max_difference(&state, &reference);
+        let effect = max_difference(&reference, &passing);
+        let tolerance = if integrator == Integrator::Xpbd {
+            XPBD_ULP_PER_SUBSTEP_M * scene.substeps_per_frame() as f32 * 3.0
+        } else {
+            F32_TOLERANCE_M
+        };
+        eprintln!(
+            "{}: folded cloth, {integrator:?}: max |x - x_f32| = {d:.3e} m (tolerance {tolerance:.1e}); without \
+             self-collision the reference ends {effect:.3e} m away",
+            backend.name
+        );
+        assert!(effect > 1e-3, "{integrator:?}: self-collision changed nothing ({effect} m)");
+        assert!(d <= tolerance, "{integrator:?}: differs from the f32 reference by {d} m");
+    }
+}
+
 /// Bit for bit the f32 reference (where no multiply-adds are fused: see EXPECTED_DIFFERENCES),
 /// with semi-implicit Euler's tiled kernel off and on (`Tiling`; the GPU backends' default is off
 /// on a CPU implementation such as lavapipe, on on a GPU for small grids). The second grid spans
@@ -905,6 +970,7 @@ conformance! {
         driven_effects_match_the_reference,
         driven_effects_move_the_cloth,
         an_absent_effect_equals_zero_strength,
+        self_collision_matches_the_reference,
         bit_exact_with_the_f32_reference,
         tiled_and_one_substep_euler_agree,
         long_horizon_outcomes_agree,

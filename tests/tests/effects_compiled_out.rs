@@ -27,6 +27,7 @@ fn work_of(effect: Effect) -> &'static [&'static str] {
         Effect::AirDrag => &["air_drag_force"],
         Effect::Wind => &["wind_force", "wind_velocity", "grid_normal"],
         Effect::MovingPins | Effect::MovingColliders => &["motion_displacement", "motion_velocity"],
+        Effect::SelfCollision => &["self_collision_force", "repulsion_force", "limit_step", "limit_velocity"],
     }
 }
 
@@ -363,6 +364,9 @@ fn present_effects_have_reachable_work() {
             "contact_force",
             "friction_force",
             "motion_displacement",
+            "self_collision_force",
+            "repulsion_force",
+            "limit_step",
         ] {
             assert!(euler.contains(f), "{language:?} Euler with every effect: `{f}` should be reachable: {euler:?}");
         }

@@ -23,16 +23,23 @@ fn wgsl_modules() -> Vec<(&'static str, String)> {
         ("cloth_step.wgsl", cloth_wgpu::STEP_SHADER.to_string()),
         ("cloth_step_tiled.wgsl", tiled),
         ("xpbd.wgsl", cloth_wgpu::XPBD_SHADER.to_string()),
+        ("self_hash.wgsl", cloth_wgpu::SELF_HASH_SHADER.to_string()),
         ("render.wgsl", RENDER_SHADER.to_string()),
     ]
 }
 
 /// Every SPIR-V module, by file name.
-const SPIRV_MODULES: [(&str, &[u8]); 3] = [
+const SPIRV_MODULES: [(&str, &[u8]); 4] = [
     ("cloth_step.spv", cloth_vulkano::STEP_SPIRV),
     ("cloth_step_tiled.spv", cloth_vulkano::TILED_STEP_SPIRV),
     ("xpbd.spv", cloth_vulkano::XPBD_SPIRV),
+    ("self_hash.spv", cloth_vulkano::SELF_HASH_SPIRV),
 ];
+
+/// The modules that read the colliders (the hash's reads the parameters only).
+fn reads_colliders(file: &str) -> bool {
+    !file.starts_with("self_hash")
+}
 
 #[test]
 fn every_wgsl_module_declares_the_shared_structs_as_the_host_lays_them_out() {
@@ -150,7 +157,8 @@ fn every_spirv_module_lays_the_shared_structs_out_as_the_host() {
             let members: Vec<(&str, usize)> = members.iter().map(|(n, o)| (n.as_str(), *o as usize)).collect();
             assert_eq!(members, layout.fields, "{file}: {name}: SPIR-V members (left) against the Rust type's (right)");
         }
-        assert!(found >= 2, "{file}: the parameters and the colliders at least");
+        let least = if reads_colliders(file) { 2 } else { 1 };
+        assert!(found >= least, "{file}: the parameters (and the colliders) at least");
     }
 }
 
@@ -175,7 +183,7 @@ fn the_collider_block_holds_as_many_colliders_as_the_host_allows() {
         .find(|l| l.shader_name == "Collider")
         .expect("the Collider layout");
     let names: Vec<&str> = collider.fields.iter().map(|f| f.0).collect();
-    for (file, spirv) in SPIRV_MODULES {
+    for (file, spirv) in SPIRV_MODULES.into_iter().filter(|(file, _)| reads_colliders(file)) {
         let r = reflect(spirv);
         let id = r.structs.iter().copied().find(|id| {
             let mut members: Vec<String> = r.member_names.get(id).into_iter().flatten().map(|m| m.1.clone()).collect();
@@ -209,17 +217,20 @@ fn plans() -> Vec<Plan> {
             let tuning = GpuTuning { tiling, ..GpuTuning::default() };
             plans.push(Plan::new(&scene, &tuning, &limits, "test").unwrap());
         }
+        let mut self_collision = Scene { integrator, ..Scene::default() };
+        self_collision.effects = self_collision.effects.with(cloth_core::Effect::SelfCollision);
+        plans.push(Plan::new(&self_collision, &GpuTuning::default(), &limits, "test").unwrap());
     }
     plans
 }
 
 #[test]
 fn every_constant_the_plan_sets_is_declared_by_its_module() {
-    let wgsl: HashMap<&str, naga::Module> = [("step", 0), ("tiled", 1), ("xpbd", 2)]
+    let wgsl: HashMap<&str, naga::Module> = [("step", 0), ("tiled", 1), ("xpbd", 2), ("self_hash", 3)]
         .into_iter()
         .map(|(kind, k)| (kind, naga::front::wgsl::parse_str(&wgsl_modules()[k].1).unwrap()))
         .collect();
-    let spirv: HashMap<&str, Reflection> = [("step", 0), ("tiled", 1), ("xpbd", 2)]
+    let spirv: HashMap<&str, Reflection> = [("step", 0), ("tiled", 1), ("xpbd", 2), ("self_hash", 3)]
         .into_iter()
         .map(|(kind, k)| (kind, reflect(SPIRV_MODULES[k].1)))
         .collect();
@@ -230,6 +241,7 @@ fn every_constant_the_plan_sets_is_declared_by_its_module() {
                 Shader::Step => "step",
                 Shader::Tiled(_) => "tiled",
                 Shader::Xpbd => "xpbd",
+                Shader::SelfHash => "self_hash",
                 Shader::Copy => unreachable!("a simulation's plan has no copy kernel"),
             };
             for (constant, _) in &pipeline.constants {
@@ -256,4 +268,21 @@ fn every_constant_the_plan_sets_is_declared_by_its_module() {
         }
     }
     assert!(checked > 100, "{checked}");
+}
+
+/// The WGSL modules that evaluate or build self-collision's hash scan its buckets in blocks of
+/// `cloth_gpu::layout::HASH_SCAN_BLOCK`, where the host puts the block sums.
+#[test]
+fn the_hash_scans_blocks_of_the_size_the_host_lays_out() {
+    for (file, source) in wgsl_modules().into_iter().filter(|(f, _)| !f.starts_with("render") && !f.contains("tiled")) {
+        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let (_, constant) = (module.constants.iter())
+            .find(|(_, c)| c.name.as_deref() == Some("HASH_SCAN_BLOCK"))
+            .unwrap_or_else(|| panic!("{file}: no HASH_SCAN_BLOCK"));
+        let value = match module.global_expressions[constant.init] {
+            naga::Expression::Literal(naga::Literal::U32(n)) => n,
+            ref other => panic!("{file}: HASH_SCAN_BLOCK is {other:?}"),
+        };
+        assert_eq!(value, cloth_gpu::layout::HASH_SCAN_BLOCK, "{file}: HASH_SCAN_BLOCK");
+    }
 }

@@ -549,12 +549,13 @@ fn cloth_falls_onto_a_mesh(backend: &Backend) {
     });
 }
 
-/// `scenes/heap.ron` at 32 × 32, 0.5 s: without self-collision the cloth passes through
+/// `scenes/heap.ron` at 32 × 32, 0.5 s, with `SelfCollision` taken out: the cloth passes through
 /// itself, and the counter sees it: more than 0 edge–triangle crossings in some frame (counted
-/// every 10 frames and at the end). Proof that the counter counts what it should; no bound is
-/// claimed on how many.
+/// every 10 frames and at the end). Proof that the counter counts what it should, and that the
+/// heap needs self-collision; no bound is claimed on how many.
 fn heap_passes_through_itself_without_self_collision(backend: &Backend) {
-    let scene = sized(cloth_conformance::scene("heap.ron"), 32, 30);
+    let mut scene = sized(cloth_conformance::scene("heap.ron"), 32, 30);
+    scene.effects = scene.effects.without(cloth_core::Effect::SelfCollision);
     for integrator in Integrator::ALL {
         let scene = with_integrator(&scene, integrator);
         let Some(outcome) = run_checked(backend, &scene, scene.time.frames, 10) else { return };
@@ -565,6 +566,25 @@ fn heap_passes_through_itself_without_self_collision(backend: &Backend) {
         let most = counts.iter().copied().max().unwrap_or(0);
         eprintln!("{}: self-intersections every 10 frames {counts:?}", outcome.name);
         assert!(most > 0, "{}: no self-intersection counted in a heap without self-collision", outcome.name);
+    }
+}
+
+/// `scenes/heap.ron` (with `SelfCollision`) at 32 × 32, 0.5 s, every integrator: the same fall
+/// as above, and not one edge–triangle crossing at any frame.
+fn heap_with_self_collision_never_passes_through_itself(backend: &Backend) {
+    let scene = sized(cloth_conformance::scene("heap.ron"), 32, 30);
+    assert!(scene.effects.contains(cloth_core::Effect::SelfCollision), "heap.ron lists SelfCollision");
+    for integrator in Integrator::ALL {
+        let scene = with_integrator(&scene, integrator);
+        let Some(outcome) = run_checked(backend, &scene, scene.time.frames, 1) else { return };
+        let [nx, ny] = scene.cloth.resolution;
+        for (frame, state) in outcome.states.iter().enumerate() {
+            let crossings = cloth_core::intersections::count(&state.positions, nx, ny).expect("the heap is not torn");
+            assert_eq!(crossings, 0, "{}: {crossings} self-intersections at frame {frame}", outcome.name);
+        }
+        let c = outcome.last().centroid();
+        eprintln!("{}: no self-intersection in {} frames, centroid {c:.3?}", outcome.name, outcome.states.len() - 1);
+        assert!(c[1] < 0.5, "{}: the heap did not fall (centroid {c:?})", outcome.name);
     }
 }
 
@@ -613,6 +633,7 @@ stability_suite! {
         cloth_falls_across_a_capsule,
         cloth_falls_onto_a_mesh,
         heap_passes_through_itself_without_self_collision,
+        heap_with_self_collision_never_passes_through_itself,
     ]
 }
 

@@ -293,7 +293,7 @@ impl<R: Real> ReferenceSimulator<R> {
     /// Advances one substep of `Δt = scene.substep_dt()` with the scene's integrator.
     pub fn substep(&mut self) {
         if let Some(s) = &self.params.self_collision
-            && (self.hash_stale || self.substeps_run % s.rebuild_interval == 0)
+            && (self.hash_stale || self.substeps_run.is_multiple_of(s.rebuild_interval))
         {
             self.hash = CellHash::build(&self.positions, s.cell, s.buckets);
             self.hash_stale = false;

@@ -409,8 +409,9 @@ mod tests {
         assert!(!q.apart_at_rest(at(5, 5), at(6, 6), 11));
         assert!(q.apart_at_rest(at(5, 5), at(7, 5), 11));
         assert!(q.apart_at_rest(at(0, 0), at(10, 0), 11), "the row's ends are far apart");
-        assert_eq!(apart_at_rest(at(5, 5), at(6, 6), 11, [0.1f32, 0.1], 0.15), false);
-        assert!(apart_at_rest(at(5, 5), at(7, 5), 11, [0.1f32, 0.1], 0.15));
+        let index = |i: u32, j: u32| at(i, j) as usize;
+        assert!(!apart_at_rest(index(5, 5), index(6, 6), 11, [0.1f32, 0.1], 0.15));
+        assert!(apart_at_rest(index(5, 5), index(7, 5), 11, [0.1f32, 0.1], 0.15));
     }
 
     /// The hash finds exactly the pairs a search of every pair finds, for vertices that moved by

@@ -19,8 +19,9 @@ impl MemoryEstimate {
     /// The buffers `plan.rs` creates for `scene`: four `vec4` state buffers (two positions, two
     /// velocities, 16 bytes a vertex each); RK4's scratch (four `vec4`s a vertex) and stage
     /// state; Verlet's half-step velocities; semi-implicit Euler's two packed states and pin
-    /// bits; XPBD's constraints (16 bytes), multipliers (4) and normal corrections; colliders, the
-    /// meshes' distance fields and parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
+    /// bits (not with self-collision, which runs on the `vec4` state); XPBD's constraints (16
+    /// bytes), multipliers (4) and normal corrections; self-collision's bucket counts, hash table
+    /// and (XPBD) corrections; colliders, the meshes' distance fields and parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
     /// overflow.
     pub fn of(scene: &Scene) -> Self {
         let [nx, ny] = scene.cloth.resolution.map(u128::from);
@@ -32,7 +33,9 @@ impl MemoryEstimate {
             .sum::<u128>()
             .max(1);
         let state = 16 * vertices;
+        let self_collision = scene.effects.contains(cloth_core::Effect::SelfCollision);
         let (extra, largest) = match scene.integrator {
+            Integrator::SemiImplicitEuler if self_collision => (0, state),
             Integrator::SemiImplicitEuler => (2 * (24 * vertices + 8) + 4 * vertices.div_ceil(32).max(1), state),
             Integrator::VelocityVerlet => (state, state),
             Integrator::RungeKutta4 => (4 * state + 2 * state, 4 * state),
@@ -47,10 +50,19 @@ impl MemoryEstimate {
             .sum();
         let colliders =
             (size_of::<crate::layout::GpuCollider>() * crate::layout::MAX_COLLIDERS) as u128 + 4 * samples.max(1);
+        let xpbd = scene.integrator == Integrator::Xpbd;
+        let (hash, hash_largest) = if self_collision {
+            let table = crate::layout::SelfHashTable::of(scene);
+            let words = 4 * table.words as u128;
+            (4 * table.buckets as u128 + words + if xpbd { 16 * vertices } else { 0 }, words)
+        } else {
+            (if xpbd { 48 } else { 32 }, 0)
+        };
+        let params = size_of::<crate::layout::GpuSimParams>() as u128;
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);
         Self {
-            largest_buffer_bytes: clamp(largest.max(state)),
-            device_bytes: clamp(4 * state + extra + colliders + 160),
+            largest_buffer_bytes: clamp(largest.max(state).max(hash_largest)),
+            device_bytes: clamp(4 * state + extra + colliders + hash + params),
         }
     }
 }

@@ -102,7 +102,7 @@ pub enum Constant {
     WorkgroupSize,
     /// `cloth_step`'s integration stage (0 Euler, 1-2 Verlet, 3-6 RK4).
     Stage,
-    /// XPBD's pass (0 predict, 1 a colour, 2 the colliders, 3 finish).
+    /// XPBD's pass (0 predict, 1 a colour, 2 the colliders, 3 finish, 4 the self-contacts).
     XpbdPass,
     /// Vertices along `i` of a block, 0 for rows.
     BlockWidth,
@@ -267,10 +267,24 @@ const SELF_HASH_BINDINGS: [Binding; 4] = [PARAMS, READ, WRITE, WRITE];
 
 /// `xpbd`'s bindings: parameters, colliders, constraints, positions and velocities in, positions
 /// and velocities out, the deepest penetration, the multipliers, the normal corrections, the
-/// colour range (a block of the colour-range buffer, chosen by a dynamic offset) and the
-/// distance fields.
-const XPBD_BINDINGS: [Binding; 12] =
-    [PARAMS, COLLIDERS, READ, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, COLOR_RANGE, DISTANCE_FIELDS];
+/// colour range (a block of the colour-range buffer, chosen by a dynamic offset), the distance
+/// fields, self-collision's hash and its corrections.
+const XPBD_BINDINGS: [Binding; 14] = [
+    PARAMS,
+    COLLIDERS,
+    READ,
+    READ,
+    READ,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    COLOR_RANGE,
+    DISTANCE_FIELDS,
+    SELF_HASH,
+    WRITE,
+];
 
 const NAME: [&str; 2] = ["A", "B"];
 
@@ -367,13 +381,6 @@ impl Plan {
             max_penetration: b.buffer("max penetration", storage, 4, None),
         };
         b.plan.state = state;
-        if scene.integrator == Integrator::Xpbd && scene.effects.contains(Effect::SelfCollision) {
-            return Err(SimError::Unsupported {
-                backend,
-                what: "self-collision under XPBD".into(),
-                fix: "use another integrator, or the cpu backend".into(),
-            });
-        }
         b.plan.schedule = match scene.integrator {
             Integrator::Xpbd => xpbd(&mut b, &model, limits),
             _ => force_based(&mut b, &positions, &velocities, limits)?,
@@ -650,16 +657,31 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
     let lambdas = b.buffer("XPBD multipliers", storage, 4 * constraints.len() as u64, None);
     let corrections = b.buffer("XPBD normal corrections", storage, 4 * n, None);
     let range_buffer = b.filled("XPBD colour ranges", BufferUsage::Uniform, &ranges);
+    let self_collision = scene.effects.contains(Effect::SelfCollision);
+    let (hash_counts, hash_words) = self_hash_buffers(b);
+    let self_corrections =
+        b.buffer("XPBD self-contact corrections", storage, if self_collision { 16 * n } else { 16 }, None);
     let kernel = b.kernel(Shader::Xpbd, &XPBD_BINDINGS);
     let s = b.plan.state;
     let groups = [0, 1].map(|k| {
         let (p, v) = (s.positions, s.velocities);
         let buffers = vec![s.params, s.colliders, constraint_buffer, p[k], v[k], p[1 - k], v[1 - k]];
-        let buffers =
-            [buffers, vec![s.max_penetration, lambdas, corrections, range_buffer, s.distance_fields]].concat();
+        let buffers = [
+            buffers,
+            vec![
+                s.max_penetration,
+                lambdas,
+                corrections,
+                range_buffer,
+                s.distance_fields,
+                hash_words,
+                self_corrections,
+            ],
+        ]
+        .concat();
         b.group(kernel, format!("XPBD {} -> {}", NAME[k], NAME[1 - k]), buffers)
     });
-    let pipelines = ["predict", "project one colour", "project the colliders", "finish"]
+    let pipelines = ["predict", "project one colour", "project the colliders", "finish", "self-contacts"]
         .iter()
         .enumerate()
         .map(|(pass, what)| b.pipeline(kernel, &format!("XPBD {what}"), &[(Constant::XpbdPass, pass as u32)]))
@@ -681,10 +703,14 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
                 substep.push(pass(1, spilled_workgroups(count, threads, max), GpuColorRange::offset(color, iteration)));
             }
         }
-        if contact {
+        if self_collision {
+            substep.push(pass(4, vertices, 0));
+        }
+        if contact || self_collision {
             substep.push(pass(2, vertices, 0));
         }
     }
     substep.push(pass(3, vertices, 0));
-    Schedule { substep, tiled: None, packed: None, rebuild: None }
+    let rebuild = self_collision.then(|| hash_rebuild(b, hash_counts, hash_words, limits));
+    Schedule { substep, tiled: None, packed: None, rebuild }
 }

@@ -5,7 +5,7 @@
 //! | semi-implicit Euler | 1 (`cloth_step`, `STAGE = 0`): on the packed state inside a submission, or fused by the tiled kernel |
 //! | velocity Verlet | 2: `STAGE = 1` (kick and drift), `STAGE = 2` (second kick) |
 //! | RK4 | 4: `STAGE = 3..=6`, one per stage |
-//! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the colliders); finish |
+//! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the self-contacts, the colliders); finish |
 //!
 //! With `SelfCollision`, the four dispatches that rebuild the spatial hash (`self_hash`: count,
 //! scan, sums, scatter) come before every `rebuild_interval`-th substep, counted from the
@@ -124,7 +124,7 @@ impl Schedule {
         if let Some(rebuild) = &self.rebuild {
             let mut k = current;
             for s in 0..substeps {
-                if (stale && s == 0) || (first + s) % rebuild.interval as u64 == 0 {
+                if (stale && s == 0) || (first + s).is_multiple_of(rebuild.interval as u64) {
                     out.extend(rebuild.passes.iter().map(|pass| pass.on(k)));
                 }
                 out.extend(self.substep.iter().map(|pass| pass.on(k)));

@@ -161,8 +161,9 @@ fn scene(integrator: Integrator, n: u32) -> Scene {
 fn the_memory_estimate_is_what_the_plan_allocates() {
     for integrator in Integrator::ALL {
         for tiling in [Tiling::Off, Tiling::On] {
-            for n in [2, 13, 64] {
-                let scene = scene(integrator, n);
+            for (n, self_collision) in [2, 13, 64].into_iter().flat_map(|n| [(n, false), (n, true)]) {
+                let mut scene = scene(integrator, n);
+                scene.effects.set(cloth_core::Effect::SelfCollision, self_collision);
                 let plan = Plan::new(&scene, &GpuTuning { tiling, ..GpuTuning::default() }, &GPU, "test").unwrap();
                 let estimate = MemoryEstimate::of(&scene);
                 // The largest storage buffer: what the device's storage bindings limit.

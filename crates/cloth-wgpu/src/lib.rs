@@ -56,11 +56,13 @@ pub fn tiled_shader_source(tile: &cloth_gpu::TileConfig) -> String {
     )
 }
 
-/// WGSL source of the XPBD passes: `layout.wgsl`, `colliders.wgsl`, `common.wgsl`, `xpbd.wgsl`.
+/// WGSL source of the XPBD passes: `layout.wgsl`, `colliders.wgsl`, `common.wgsl`,
+/// `self_collision.wgsl`, `xpbd.wgsl`.
 pub const XPBD_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
     include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
+    include_str!("../../../shaders/wgsl/self_collision.wgsl"),
     include_str!("../../../shaders/wgsl/xpbd.wgsl")
 );
 
