@@ -78,16 +78,20 @@ void state_in(uint index, out vec3 x, out vec3 v) {
 #include "grid.glsl"
 
 // The self-collision force on free vertex i at x moving at v, N: the repulsion of every vertex
-// the hash lists in the 27 cells around x's that is closer than the thickness and apart at rest
+// the hash lists in the cells around x's within reach that is closer than the thickness and apart at rest
 // (cloth_core::reference's self_collision_force, cells in the same order).
 vec3 self_collision_force(uint i, vec3 x, vec3 v, float friction_dt) {
     vec3 force = vec3(0.0);
     ivec3 base = hash_cell(x);
     uint buckets = params.self_table.x;
     uint block_sums = params.self_table.y;
+    vec3 below = hash_gaps(x, base);
     for (int dz = -1; dz <= 1; dz++) {
         for (int dy = -1; dy <= 1; dy++) {
             for (int dx = -1; dx <= 1; dx++) {
+                if (!hash_cell_in_reach(below, ivec3(dx, dy, dz))) {
+                    continue;
+                }
                 ivec3 c = base + ivec3(dx, dy, dz);
                 uint b = hash_bucket(c);
                 uint start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];

@@ -20,6 +20,22 @@ uint hash_bucket(ivec3 c) {
     return h & (params.self_table.x - 1u);
 }
 
+// The distances from x to the low faces of its cell `base`, per axis, m (the high faces are h
+// minus these): how far the neighbouring cells below and above are (hash_gaps in
+// cloth_core::self_collision).
+vec3 hash_gaps(vec3 x, ivec3 base) {
+    return x - vec3(base) * params.self_hash.x;
+}
+
+// Whether the cell at offset d from x's comes nearer x than the cell side h: a vertex listed
+// farther than h from where x is now cannot be within the thickness of it (cell_in_reach).
+bool hash_cell_in_reach(vec3 below, ivec3 d) {
+    float h = params.self_hash.x;
+    vec3 above = vec3(h) - below;
+    vec3 e = mix(vec3(0.0), below, lessThan(d, ivec3(0))) + mix(vec3(0.0), above, greaterThan(d, ivec3(0)));
+    return dot(e, e) < h * h;
+}
+
 // Whether vertices a and b are at least the thickness apart at rest, from their grid
 // coordinates (the rest-distance filter, apart_at_rest).
 bool apart_at_rest(uint a, uint b) {

@@ -84,8 +84,8 @@ vec4 self_contact_correction(vec3 x_i, vec3 x_j, vec3 x0_i, vec3 x0_j, float w_i
     return vec4(correction, 1.0);
 }
 
-// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the 27 cells around
-// it, from the positions the springs left, averaged (cloth_core::reference's
+// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the cells around it
+// within reach, from the positions the springs left, averaged (cloth_core::reference's
 // project_self_contacts, cells in the same order).
 void self_contacts(uint i) {
     vec4 p = positions_out[i];
@@ -100,9 +100,13 @@ void self_contacts(uint i) {
     ivec3 base = hash_cell(x);
     uint buckets = params.self_table.x;
     uint block_sums = params.self_table.y;
+    vec3 below = hash_gaps(x, base);
     for (int dz = -1; dz <= 1; dz++) {
         for (int dy = -1; dy <= 1; dy++) {
             for (int dx = -1; dx <= 1; dx++) {
+                if (!hash_cell_in_reach(below, ivec3(dx, dy, dz))) {
+                    continue;
+                }
                 ivec3 c = base + ivec3(dx, dy, dz);
                 uint b = hash_bucket(c);
                 uint start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];

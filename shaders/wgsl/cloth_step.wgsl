@@ -133,16 +133,20 @@ fn add_stencil_springs(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u
 }
 
 // The self-collision force on free vertex i at x moving at v, N: the repulsion of every vertex
-// the hash lists in the 27 cells around x's that is closer than the thickness and apart at rest
-// (cloth_core::reference's self_collision_force, cells in the same order).
+// the hash lists in the cells around x's within reach that is closer than the thickness and apart
+// at rest (cloth_core::reference's self_collision_force, cells in the same order).
 fn self_collision_force(i: u32, x: vec3<f32>, v: vec3<f32>, friction_dt: f32) -> vec3<f32> {
     var force = vec3<f32>(0.0);
     let base = hash_cell(x);
     let buckets = params.self_table.x;
     let block_sums = params.self_table.y;
+    let gaps = hash_gaps(x, base);
     for (var dz = -1; dz <= 1; dz++) {
         for (var dy = -1; dy <= 1; dy++) {
             for (var dx = -1; dx <= 1; dx++) {
+                if (!hash_cell_in_reach(gaps, dx, dy, dz)) {
+                    continue;
+                }
                 let c = base + vec3<i32>(dx, dy, dz);
                 let b = hash_bucket(c);
                 let start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];

@@ -20,6 +20,31 @@ fn hash_bucket(c: vec3<i32>) -> u32 {
     return h & (params.self_table.x - 1u);
 }
 
+// The distances from x to the low and the high faces of its cell `base`, per axis, m: how far
+// the neighbouring cells below and above are (hash_gaps in cloth_core::self_collision).
+struct HashGaps {
+    below: vec3<f32>,
+    above: vec3<f32>,
+}
+
+fn hash_gaps(x: vec3<f32>, base: vec3<i32>) -> HashGaps {
+    let h = params.self_hash.x;
+    let below = x - vec3<f32>(base) * h;
+    return HashGaps(below, vec3<f32>(h) - below);
+}
+
+// Whether the cell at offset (dx, dy, dz) from x's comes nearer x than the cell side h: a vertex
+// listed farther than h from where x is now cannot be within the thickness of it
+// (cell_in_reach).
+fn hash_cell_in_reach(gaps: HashGaps, dx: i32, dy: i32, dz: i32) -> bool {
+    let d = vec3<i32>(dx, dy, dz);
+    let low = select(vec3<f32>(0.0), gaps.below, d < vec3<i32>(0));
+    let high = select(vec3<f32>(0.0), gaps.above, d > vec3<i32>(0));
+    let e = low + high;
+    let h = params.self_hash.x;
+    return dot(e, e) < h * h;
+}
+
 // Whether vertices a and b are at least the thickness apart at rest, from their grid
 // coordinates (the rest-distance filter, apart_at_rest).
 fn apart_at_rest(a: u32, b: u32) -> bool {

@@ -74,8 +74,8 @@ fn self_contact_correction(x_i: vec3<f32>, x_j: vec3<f32>, x0_i: vec3<f32>, x0_j
     return vec4<f32>(correction, 1.0);
 }
 
-// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the 27 cells around
-// it, from the positions the springs left, averaged (cloth_core::reference's
+// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the cells around it
+// within reach, from the positions the springs left, averaged (cloth_core::reference's
 // project_self_contacts, cells in the same order).
 fn self_contacts(i: u32) {
     let p = positions_out[i];
@@ -90,9 +90,13 @@ fn self_contacts(i: u32) {
     let base = hash_cell(x);
     let buckets = params.self_table.x;
     let block_sums = params.self_table.y;
+    let gaps = hash_gaps(x, base);
     for (var dz = -1; dz <= 1; dz++) {
         for (var dy = -1; dy <= 1; dy++) {
             for (var dx = -1; dx <= 1; dx++) {
+                if (!hash_cell_in_reach(gaps, dx, dy, dz)) {
+                    continue;
+                }
                 let c = base + vec3<i32>(dx, dy, dz);
                 let b = hash_bucket(c);
                 let start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];

@@ -35,7 +35,7 @@
 //! **The spatial hash.** The vertices are sorted into cubic cells of side
 //! `h = r + s_max (K + 1) Δt`, rebuilt at the start of every `K`-th substep
 //! (`rebuild_interval`). A vertex is listed in the cell of where it was at the rebuild; it
-//! queries the 27 cells around where it is now. Until the next rebuild a vertex moves at most
+//! queries the 27 cells around where it is now (those that come nearer than `h`). Until the next rebuild a vertex moves at most
 //! `s_max K Δt` at the ends of substeps (the speed limit), and the extra substep of margin covers
 //! the stage states of velocity Verlet and RK4 inside a substep (whose stage velocities stay near
 //! the limited ones). So a pair closer than `r` now was closer than `h` between the query's
@@ -255,6 +255,28 @@ pub fn cell_of<R: Real>(x: Vec3<R>, cell: R) -> [i32; 3] {
     [c(x.x), c(x.y), c(x.z)]
 }
 
+/// The distances from `x` to the low faces of its cell `base` of side `h`, per axis, m (those to
+/// the high faces are `h` minus these).
+pub fn hash_gaps<R: Real>(x: Vec3<R>, base: [i32; 3], h: R) -> Vec3<R> {
+    let low = |c: i32| R::of(c as f64) * h;
+    x - Vec3::new(low(base[0]), low(base[1]), low(base[2]))
+}
+
+/// Whether the cell at offset `d` (each −1, 0 or 1) from `x`'s comes nearer `x` than the cell
+/// side `h`, given `x`'s distances `below` from its cell's low faces: a vertex listed there is
+/// farther than `h` from `x`, and between rebuilds a pair closer than the thickness was listed
+/// nearer than `h`, so the cell can hold none of `x`'s contacts. About half of the 27 cells
+/// around a vertex are out of reach.
+pub fn cell_in_reach<R: Real>(below: Vec3<R>, d: [i32; 3], h: R) -> bool {
+    let gap = |below: R, d: i32| match d {
+        -1 => below,
+        1 => h - below,
+        _ => R::zero(),
+    };
+    let e = Vec3::new(gap(below.x, d[0]), gap(below.y, d[1]), gap(below.z, d[2]));
+    e.dot(e) < h * h
+}
+
 /// The bucket of cell `c` in a table of `buckets` (a power of two): the three coordinates times
 /// large primes, combined by exclusive or (wrapping `u32` arithmetic, as the kernels compute it).
 pub fn bucket_of(c: [i32; 3], buckets: u32) -> u32 {
@@ -299,13 +321,20 @@ impl CellHash {
         Self { cell, start, entries }
     }
 
-    /// Calls `visit(j)` for every vertex listed in one of the 27 cells around `x`'s cell, each
-    /// once, in the order the kernels visit them (cells by `z`, `y`, `x` offset, entries in order).
+    /// Calls `visit(j)` for every vertex listed in one of the 27 cells around `x`'s cell that
+    /// comes nearer `x` than the cell side ([`cell_in_reach`]), each once, in the order the
+    /// kernels visit them (cells by `z`, `y`, `x` offset, entries in order).
     pub fn for_each_near<R: Real>(&self, x: Vec3<R>, buckets: u32, mut visit: impl FnMut(usize)) {
-        let [cx, cy, cz] = cell_of(x, R::of(self.cell));
+        let h = R::of(self.cell);
+        let base = cell_of(x, h);
+        let [cx, cy, cz] = base;
+        let below = hash_gaps(x, base, h);
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
+                    if !cell_in_reach(below, [dx, dy, dz], h) {
+                        continue;
+                    }
                     let c = [cx + dx, cy + dy, cz + dz];
                     let b = bucket_of(c, buckets) as usize;
                     for &(j, listed) in &self.entries[self.start[b] as usize..self.start[b + 1] as usize] {

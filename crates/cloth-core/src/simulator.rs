@@ -177,6 +177,10 @@ impl Scene {
             Some("a mesh collider's file, scale or cells".into())
         } else if self.integrator != new.integrator {
             Some("the integrator".into())
+        } else if self.effects.contains(crate::Effect::SelfCollision)
+            && self.self_collision.rebuild_interval != new.self_collision.rebuild_interval
+        {
+            Some("self-collision's rebuild interval (the GPU's schedule of hash rebuilds)".into())
         } else {
             None
         }
