@@ -569,11 +569,11 @@ fn heap_passes_through_itself_without_self_collision(backend: &Backend) {
     }
 }
 
-/// `scenes/heap.ron` (with `SelfCollision`) at 24 × 24, 1/3 s, every integrator: the fall of the
+/// `scenes/heap.ron` (with `SelfCollision`) at 16 × 16, 1/4 s, every integrator: the fall of the
 /// case above, and not one edge–triangle crossing at any frame. (Without self-collision this fall
-/// already crosses itself 702 times within its first 15 frames, on the CPU.)
+/// already crosses itself 426 times within these 15 frames, on the CPU.)
 fn heap_with_self_collision_never_passes_through_itself(backend: &Backend) {
-    let scene = sized(cloth_conformance::scene("heap.ron"), 24, 20);
+    let scene = sized(cloth_conformance::scene("heap.ron"), 16, 15);
     assert!(scene.effects.contains(cloth_core::Effect::SelfCollision), "heap.ron lists SelfCollision");
     for integrator in Integrator::ALL {
         let scene = with_integrator(&scene, integrator);
