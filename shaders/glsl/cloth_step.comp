@@ -25,7 +25,7 @@ layout(constant_id = 101) const uint STAGE = 0u;
 #include "self_collision.glsl"
 
 // No spring list: the springs are computed from the grid (add_stencil_springs).
-layout(set = 0, binding = 2, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, 0 pinned
+layout(set = 0, binding = 2, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, minus its pin group pinned
 layout(set = 0, binding = 3, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };
 layout(set = 0, binding = 4, std430) buffer PositionsOut { vec4 positions_out[]; };
 layout(set = 0, binding = 5, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
@@ -223,13 +223,18 @@ void main() {
     state_in(i, x, v);
     // Whether the vertex moves freely (positions.w, or its pin bit), and the time of the state
     // read (velocities.w, or the packed state's clock) and of the state written.
+    // The packed state has no pin groups (cloth_gpu::plan keeps a scene with several on the vec4
+    // state), so its pins are group 0.
     bool free_vertex;
+    float w_in;
     float t;
     if (PACKED_IN != 0u) {
         free_vertex = (pin_bits[i >> 5u] & (1u << (i & 31u))) == 0u;
+        w_in = free_vertex ? 1.0 : 0.0;
         t = packed_v_in[params.vertex_count].x;
     } else {
-        free_vertex = positions_in[i].w != 0.0;
+        w_in = positions_in[i].w;
+        free_vertex = w_in > 0.0;
         t = velocities_in[i].w;
     }
     float dt = params.substep_dt;
@@ -358,9 +363,10 @@ void main() {
             }
         }
     } else {
-        // A pin stays put, or follows the pin motion (MovingPins) from t to t_out.
-        x_new = x + pin_step(t, t_out);
-        v_new = pin_velocity(t_out);
+        // A pin stays put, or follows its group's motion (MovingPins) from t to t_out.
+        uint group = pin_group(w_in);
+        x_new = pin_carry(group, x, t, t_out);
+        v_new = pin_velocity(group, x_new, t_out);
     }
     if (PACKED_OUT != 0u) {
         packed_xv_out[i] = vec4(x_new, v_new.x);
@@ -373,7 +379,7 @@ void main() {
         if (STAGE == 2u) {
             return; // the second kick leaves the positions of the first stage as they are
         }
-        positions_out[i] = vec4(x_new, free_vertex ? 1.0 : 0.0);
+        positions_out[i] = vec4(x_new, w_in);
     }
     // The deepest penetration is checked on the state that ends a substep, as on the CPU.
     // (Nested ifs: a constant condition stays one branch, which a compiler removes whole.)

@@ -25,7 +25,7 @@ layout(constant_id = 106) const uint FUSED_SUBSTEPS = 2u;    // substeps per dis
 #include "layout.glsl"
 #include "forces.glsl"
 
-layout(set = 0, binding = 2, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, 0 pinned
+layout(set = 0, binding = 2, std430) readonly buffer PositionsIn { vec4 positions_in[]; };    // w: 1 free, minus its pin group pinned
 layout(set = 0, binding = 3, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };  // w: the state's time, s
 layout(set = 0, binding = 4, std430) buffer PositionsOut { vec4 positions_out[]; };
 layout(set = 0, binding = 5, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
@@ -127,7 +127,7 @@ void main() {
     int j = int(gl_WorkGroupID.y * (TILE_HEIGHT - 2u * halo) + b) - int(halo);
     bool in_grid = i >= 0 && j >= 0 && i < nx && j < ny;
     uint index = 0u;
-    float free_w = 0.0;   // 1 free, 0 pinned
+    float free_w = 0.0;   // 1 free, minus the pin group pinned
     float t = 0.0;        // the state's time, s
     if (in_grid) {
         index = uint(j) * params.grid_nx + uint(i);
@@ -154,7 +154,7 @@ void main() {
             vec3 x = tile_position(c);
             vec3 v = tile_velocity(c);
             float t_out = t + dt;
-            if (free_w != 0.0) {
+            if (free_w > 0.0) {
                 vec3 force = vec3(0.0);
                 if (EFFECT_GRAVITY) {
                     force += gravity_force(mass, params.gravity.xyz);
@@ -193,9 +193,10 @@ void main() {
                 v_new = v + force * (dt / mass);
                 x_new = x + v_new * dt;
             } else {
-                // A pin stays put, or follows the pin motion (MovingPins) from t to t_out.
-                x_new = x + pin_step(t, t_out);
-                v_new = pin_velocity(t_out);
+                // A pin stays put, or follows its group's motion (MovingPins) from t to t_out.
+                uint group = pin_group(free_w);
+                x_new = pin_carry(group, x, t, t_out);
+                v_new = pin_velocity(group, x_new, t_out);
             }
             t = t_out;
             // The deepest penetration at the end of each substep, over the output block.

@@ -90,21 +90,59 @@ vec3 motion_velocity(vec3 velocity, vec3 amplitude, float omega, float t) {
     return velocity + amplitude * (omega * cos(omega * t));
 }
 
-// A pin's move from time `from` to `to` (zero without MovingPins).
-vec3 pin_step(float from_t, float to_t) {
-    if (EFFECT_MOVING_PINS) {
-        vec4 v = params.pin_velocity;
-        return motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, to_t)
-            - motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, from_t);
-    }
-    return vec3(0.0);
+// The pin group of a pinned vertex, from its position's w (0, −1, −2, −3; free vertices have 1).
+uint pin_group(float w) {
+    return uint(max(-w, 0.0));
 }
 
-// A pin's velocity at time t (zero without MovingPins).
-vec3 pin_velocity(float t) {
+// The rotation of v by the angle |θ| about θ/|θ| (cloth_core::motion::rotate, Rodrigues).
+vec3 rotate(vec3 theta, vec3 v) {
+    float angle = sqrt(dot(theta, theta));
+    if (angle == 0.0) {
+        return v;
+    }
+    vec3 k = theta * (1.0 / angle);
+    float s = sin(angle);
+    float c = cos(angle);
+    return v * c + cross(k, v) * s + k * (dot(k, v) * (1.0 - c));
+}
+
+// Where a pin of `group` at x at time `from` is at `to` (MotionOf::carry): x + d(to) − d(from),
+// or, turning, p(to) + R(ω (to − from))(x − p(from)) with p(t) = pivot + d(t). Without
+// MovingPins it stays at x.
+vec3 pin_carry(uint group, vec3 x, float from_t, float to_t) {
     if (EFFECT_MOVING_PINS) {
-        vec4 v = params.pin_velocity;
-        return motion_velocity(v.xyz, params.pin_amplitude.xyz, v.w, t);
+        uint m = 4u * group;
+        vec4 v = params.pin_motion[m];
+        vec3 a = params.pin_motion[m + 1u].xyz;
+        vec3 w = params.pin_motion[m + 2u].xyz;
+        vec3 d_from = motion_displacement(v.xyz, a, v.w, from_t);
+        vec3 d_to = motion_displacement(v.xyz, a, v.w, to_t);
+        if (all(equal(w, vec3(0.0)))) {
+            return x + (d_to - d_from);
+        }
+        vec3 pivot = params.pin_motion[m + 3u].xyz;
+        vec3 p_from = pivot + d_from;
+        vec3 p_to = pivot + d_to;
+        return p_to + rotate(w * (to_t - from_t), x - p_from);
+    }
+    return x;
+}
+
+// The velocity of a pin of `group` at x at time t (MotionOf::point_velocity): d'(t), plus
+// ω × (x − p(t)) turning; zero without MovingPins.
+vec3 pin_velocity(uint group, vec3 x, float t) {
+    if (EFFECT_MOVING_PINS) {
+        uint m = 4u * group;
+        vec4 v = params.pin_motion[m];
+        vec3 a = params.pin_motion[m + 1u].xyz;
+        vec3 w = params.pin_motion[m + 2u].xyz;
+        vec3 velocity = motion_velocity(v.xyz, a, v.w, t);
+        if (all(equal(w, vec3(0.0)))) {
+            return velocity;
+        }
+        vec3 p = params.pin_motion[m + 3u].xyz + motion_displacement(v.xyz, a, v.w, t);
+        return velocity + cross(w, x - p);
     }
     return vec3(0.0);
 }

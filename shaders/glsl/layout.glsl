@@ -2,7 +2,7 @@
 // (checked by tests/tests/shader_layouts.rs), with the two bindings all kernels share
 // (0: parameters, 1: colliders) and the colliders' signed distances (colliders.glsl). Each kernel declares its other bindings.
 
-// cloth_gpu::layout::GpuSimParams (208 bytes, std140).
+// cloth_gpu::layout::GpuSimParams (432 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gravity;       // m/s² (xyz)
     vec4 stiffness;     // N/m by spring kind: structural, shear, bend
@@ -17,8 +17,9 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     uint effects;
     vec4 wind;          // mean wind velocity, m/s (xyz); w: coefficient × area per vertex, N·s/m
     vec4 gust;          // x: relative amplitude, y: angular frequency, rad/s
-    vec4 pin_velocity;  // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
-    vec4 pin_amplitude; // pins' oscillation amplitude, m (xyz)
+    // Four vec4s a pin group (cloth_gpu::layout::PIN_MOTION_WORDS): steady velocity, m/s (xyz),
+    // w the angular frequency, rad/s; amplitude, m; angular velocity, rad/s; pivot, m.
+    vec4 pin_motion[16];
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
     vec4 self_contact;  // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     vec4 self_hash;     // the hash's cell side, m; speed limit, m/s; grid spacing along u, v, m

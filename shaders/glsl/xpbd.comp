@@ -26,7 +26,7 @@ layout(constant_id = 101) const uint XPBD_PASS = 0u;
 #include "self_collision.glsl"
 
 layout(set = 0, binding = 2, std430) readonly buffer Constraints { Constraint constraints[]; };
-// The state at the substep's start (w: 1 free, 0 pinned).
+// The state at the substep's start (w: 1 free, minus its pin group pinned).
 layout(set = 0, binding = 3, std430) readonly buffer PositionsIn { vec4 positions_in[]; };
 layout(set = 0, binding = 4, std430) readonly buffer VelocitiesIn { vec4 velocities_in[]; };
 // The predicted positions, projected in place; then the new state.
@@ -89,7 +89,7 @@ vec4 self_contact_correction(vec3 x_i, vec3 x_j, vec3 x0_i, vec3 x0_j, float w_i
 // project_self_contacts, cells in the same order).
 void self_contacts(uint i) {
     vec4 p = positions_out[i];
-    if (p.w == 0.0) {
+    if (p.w <= 0.0) {
         self_corrections[i] = vec4(0.0);
         return;
     }
@@ -121,7 +121,7 @@ void self_contacts(uint i) {
                     uint j = self_hash_words[at + 3u];
                     if (listed == c && j != i && apart_at_rest(i, j)) {
                         vec4 q = positions_out[j];
-                        sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, q.w * w);
+                        sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
                     }
                 }
             }
@@ -256,7 +256,7 @@ void predict(uint i) {
     float t = state.w;
     float h = params.substep_dt;
     vec3 x = p.xyz;
-    if (p.w != 0.0) {
+    if (p.w > 0.0) {
         float m = params.vertex_mass;
         vec3 v = state.xyz;
         if (EFFECT_GRAVITY) {
@@ -270,7 +270,7 @@ void predict(uint i) {
         }
         x = x + v * h;
     } else {
-        x = x + pin_step(t, t + h);
+        x = pin_carry(pin_group(p.w), x, t, t + h);
     }
     positions_out[i] = vec4(x, p.w);
     normal_corrections[i] = 0.0;
@@ -294,7 +294,7 @@ void project_color(uint t) {
     float lambda = color.first_iteration != 0u ? 0.0 : lambdas[c];
     vec3 x_a = pa.xyz;
     vec3 x_b = pb.xyz;
-    project_spring(x_a, x_b, pa.w * w, pb.w * w, s.rest_length, params.stiffness[s.kind], params.substep_dt, lambda);
+    project_spring(x_a, x_b, max(pa.w, 0.0) * w, max(pb.w, 0.0) * w, s.rest_length, params.stiffness[s.kind], params.substep_dt, lambda);
     lambdas[c] = lambda;
     positions_out[s.a] = vec4(x_a, pa.w);
     positions_out[s.b] = vec4(x_b, pb.w);
@@ -302,7 +302,7 @@ void project_color(uint t) {
 
 void project_colliders(uint i) {
     vec4 p = positions_out[i];
-    if (p.w == 0.0) {
+    if (p.w <= 0.0) {
         return;
     }
     float t = velocities_in[i].w;
@@ -328,8 +328,8 @@ void finish(uint i) {
     float t = velocities_in[i].w;
     float t_end = t + params.substep_dt;
     vec3 x = p.xyz;
-    vec3 v = pin_velocity(t_end);
-    if (p.w != 0.0) {
+    vec3 v = pin_velocity(pin_group(p.w), x, t_end);
+    if (p.w > 0.0) {
         vec3 x0 = positions_in[i].xyz;
         float correction = normal_corrections[i];
         if (EFFECT_FRICTION) {

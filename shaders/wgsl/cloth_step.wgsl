@@ -15,7 +15,7 @@ override STAGE: u32 = 0u;
 @group(0) @binding(0) var<uniform> params: SimParams;
 @group(0) @binding(1) var<uniform> colliders: array<Collider, MAX_COLLIDERS>;
 // No spring list: the springs are computed from the grid (add_stencil_springs).
-@group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
+@group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, minus its pin group pinned
 @group(0) @binding(3) var<storage, read> velocities_in: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> positions_out: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> velocities_out: array<vec4<f32>>;
@@ -218,13 +218,18 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     let v = own.v;
     // Whether the vertex moves freely (positions.w, or its pin bit), and the time of the state
     // read (velocities.w, or the packed state's clock) and of the state written.
+    // The packed state has no pin groups (cloth_gpu::plan keeps a scene with several on the vec4
+    // state), so its pins are group 0.
     var free_vertex: bool;
+    var w_in: f32;
     var t: f32;
     if (PACKED_IN != 0u) {
         free_vertex = (pin_bits[i >> 5u] & (1u << (i & 31u))) == 0u;
+        w_in = select(0.0, 1.0, free_vertex);
         t = packed_v_in[params.vertex_count].x;
     } else {
-        free_vertex = positions_in[i].w != 0.0;
+        w_in = positions_in[i].w;
+        free_vertex = w_in > 0.0;
         t = velocities_in[i].w;
     }
     let dt = params.substep_dt;
@@ -359,9 +364,10 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             }
         }
     } else {
-        // A pin stays put, or follows the pin motion (MovingPins) from t to t_out.
-        x_new = x + pin_step(t, t_out);
-        v_new = pin_velocity(t_out);
+        // A pin stays put, or follows its group's motion (MovingPins) from t to t_out.
+        let group = pin_group(w_in);
+        x_new = pin_carry(group, x, t, t_out);
+        v_new = pin_velocity(group, x_new, t_out);
     }
     if (PACKED_OUT != 0u) {
         packed_xv_out[i] = vec4<f32>(x_new, v_new.x);
@@ -374,7 +380,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         if (STAGE == 2u) {
             return; // the second kick leaves the positions of the first stage as they are
         }
-        positions_out[i] = vec4<f32>(x_new, select(0.0, 1.0, free_vertex));
+        positions_out[i] = vec4<f32>(x_new, w_in);
     }
     // The deepest penetration is checked on the state that ends a substep, as on the CPU.
     // (Nested ifs: a constant condition stays one branch, which a compiler removes whole.)

@@ -15,7 +15,7 @@ const HALO: u32 = 2u * FUSED_SUBSTEPS;
 
 @group(0) @binding(0) var<uniform> params: SimParams;
 @group(0) @binding(1) var<uniform> colliders: array<Collider, MAX_COLLIDERS>;
-@group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, 0 pinned
+@group(0) @binding(2) var<storage, read> positions_in: array<vec4<f32>>;   // w: 1 free, minus its pin group pinned
 @group(0) @binding(3) var<storage, read> velocities_in: array<vec4<f32>>;  // w: the state's time, s
 @group(0) @binding(4) var<storage, read_write> positions_out: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> velocities_out: array<vec4<f32>>;
@@ -130,7 +130,7 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
     let j = i32(group.y * (TILE_HEIGHT - 2u * HALO) + b) - i32(HALO);
     let in_grid = i >= 0 && j >= 0 && i < nx && j < ny;
     var index = 0u;
-    var free_w = 0.0;   // 1 free, 0 pinned
+    var free_w = 0.0;   // 1 free, minus the pin group pinned
     var t = 0.0;      // the state's time, s
     if (in_grid) {
         index = u32(j) * params.grid_nx + u32(i);
@@ -157,7 +157,7 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
             let x = tile_position(c);
             let v = tile_velocity(c);
             let t_out = t + dt;
-            if (free_w != 0.0) {
+            if (free_w > 0.0) {
                 var force = vec3<f32>(0.0);
                 if (EFFECT_GRAVITY) {
                     force += gravity_force(mass, params.gravity.xyz);
@@ -194,9 +194,10 @@ fn substeps(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_i
                 v_new = v + force * (dt / mass);
                 x_new = x + v_new * dt;
             } else {
-                // A pin stays put, or follows the pin motion (MovingPins) from t to t_out.
-                x_new = x + pin_step(t, t_out);
-                v_new = pin_velocity(t_out);
+                // A pin stays put, or follows its group's motion (MovingPins) from t to t_out.
+                let group = pin_group(free_w);
+                x_new = pin_carry(group, x, t, t_out);
+                v_new = pin_velocity(group, x_new, t_out);
             }
             t = t_out;
             // The deepest penetration at the end of each substep, over the output block.

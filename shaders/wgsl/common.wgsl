@@ -120,21 +120,59 @@ fn motion_velocity(velocity: vec3<f32>, amplitude: vec3<f32>, omega: f32, t: f32
     return velocity + amplitude * (omega * cos(omega * t));
 }
 
-// A pin's move from time `from` to `to` (zero without MovingPins).
-fn pin_step(from_t: f32, to_t: f32) -> vec3<f32> {
-    if (EFFECT_MOVING_PINS) {
-        let v = params.pin_velocity;
-        return motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, to_t)
-            - motion_displacement(v.xyz, params.pin_amplitude.xyz, v.w, from_t);
-    }
-    return vec3<f32>(0.0);
+// The pin group of a pinned vertex, from its position's w (0, −1, −2, −3; free vertices have 1).
+fn pin_group(w: f32) -> u32 {
+    return u32(max(-w, 0.0));
 }
 
-// A pin's velocity at time t (zero without MovingPins).
-fn pin_velocity(t: f32) -> vec3<f32> {
+// The rotation of v by the angle |θ| about θ/|θ| (cloth_core::motion::rotate, Rodrigues).
+fn rotate(theta: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    let angle = sqrt(dot(theta, theta));
+    if (angle == 0.0) {
+        return v;
+    }
+    let k = theta * (1.0 / angle);
+    let s = sin(angle);
+    let c = cos(angle);
+    return v * c + cross(k, v) * s + k * (dot(k, v) * (1.0 - c));
+}
+
+// Where a pin of `group` at x at time `from` is at `to` (MotionOf::carry): x + d(to) − d(from),
+// or, turning, p(to) + R(ω (to − from))(x − p(from)) with p(t) = pivot + d(t). Without
+// MovingPins it stays at x.
+fn pin_carry(group: u32, x: vec3<f32>, from_t: f32, to_t: f32) -> vec3<f32> {
     if (EFFECT_MOVING_PINS) {
-        let v = params.pin_velocity;
-        return motion_velocity(v.xyz, params.pin_amplitude.xyz, v.w, t);
+        let m = 4u * group;
+        let v = params.pin_motion[m];
+        let a = params.pin_motion[m + 1u].xyz;
+        let w = params.pin_motion[m + 2u].xyz;
+        let d_from = motion_displacement(v.xyz, a, v.w, from_t);
+        let d_to = motion_displacement(v.xyz, a, v.w, to_t);
+        if (all(w == vec3<f32>(0.0))) {
+            return x + (d_to - d_from);
+        }
+        let pivot = params.pin_motion[m + 3u].xyz;
+        let p_from = pivot + d_from;
+        let p_to = pivot + d_to;
+        return p_to + rotate(w * (to_t - from_t), x - p_from);
+    }
+    return x;
+}
+
+// The velocity of a pin of `group` at x at time t (MotionOf::point_velocity): d'(t), plus
+// ω × (x − p(t)) turning; zero without MovingPins.
+fn pin_velocity(group: u32, x: vec3<f32>, t: f32) -> vec3<f32> {
+    if (EFFECT_MOVING_PINS) {
+        let m = 4u * group;
+        let v = params.pin_motion[m];
+        let a = params.pin_motion[m + 1u].xyz;
+        let w = params.pin_motion[m + 2u].xyz;
+        let velocity = motion_velocity(v.xyz, a, v.w, t);
+        if (all(w == vec3<f32>(0.0))) {
+            return velocity;
+        }
+        let p = params.pin_motion[m + 3u].xyz + motion_displacement(v.xyz, a, v.w, t);
+        return velocity + cross(w, x - p);
     }
     return vec3<f32>(0.0);
 }

@@ -2,7 +2,7 @@
 // declared once here and prepended to every WGSL module that uses them (the compute kernels and
 // the inspector's render.wgsl). A test reflects every such module against the Rust types.
 
-// cloth_gpu::layout::GpuSimParams (208 bytes).
+// cloth_gpu::layout::GpuSimParams (432 bytes).
 struct SimParams {
     gravity: vec4<f32>,      // m/s² (xyz)
     stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
@@ -17,8 +17,9 @@ struct SimParams {
     effects: u32,
     wind: vec4<f32>,         // mean wind velocity, m/s (xyz); w: coefficient × area per vertex, N·s/m
     gust: vec4<f32>,         // x: relative amplitude, y: angular frequency, rad/s
-    pin_velocity: vec4<f32>, // pins' steady velocity, m/s (xyz); w: angular frequency, rad/s
-    pin_amplitude: vec4<f32>,// pins' oscillation amplitude, m (xyz)
+    // Four vec4s a pin group (cloth_gpu::layout::PIN_MOTION_WORDS): steady velocity, m/s (xyz),
+    // w the angular frequency, rad/s; amplitude, m; angular velocity, rad/s; pivot, m.
+    pin_motion: array<vec4<f32>, 16>,
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
     self_contact: vec4<f32>, // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     self_hash: vec4<f32>,    // the hash's cell side, m; speed limit, m/s; grid spacing along u, v, m

@@ -22,7 +22,7 @@ override XPBD_PASS: u32 = 0u;
 @group(0) @binding(0) var<uniform> params: SimParams;
 @group(0) @binding(1) var<uniform> colliders: array<Collider, MAX_COLLIDERS>;
 @group(0) @binding(2) var<storage, read> constraints: array<Constraint>;
-// The state at the substep's start (w: 1 free, 0 pinned).
+// The state at the substep's start (w: 1 free, minus its pin group pinned).
 @group(0) @binding(3) var<storage, read> positions_in: array<vec4<f32>>;
 
 // The position of vertex `index` in the state read, m (for common.wgsl's grid_normal).
@@ -79,7 +79,7 @@ fn self_contact_correction(x_i: vec3<f32>, x_j: vec3<f32>, x0_i: vec3<f32>, x0_j
 // project_self_contacts, cells in the same order).
 fn self_contacts(i: u32) {
     let p = positions_out[i];
-    if (p.w == 0.0) {
+    if (p.w <= 0.0) {
         self_corrections[i] = vec4<f32>(0.0);
         return;
     }
@@ -112,7 +112,7 @@ fn self_contacts(i: u32) {
                     if (all(listed == c) & (j != i)) {
                         if (apart_at_rest(i, j)) {
                             let q = positions_out[j];
-                            sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, q.w * w);
+                            sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
                         }
                     }
                 }
@@ -262,7 +262,7 @@ fn predict(i: u32) {
     let t = state.w;
     let h = params.substep_dt;
     var x = p.xyz;
-    if (p.w != 0.0) {
+    if (p.w > 0.0) {
         let m = params.vertex_mass;
         var v = state.xyz;
         if (EFFECT_GRAVITY) {
@@ -276,7 +276,7 @@ fn predict(i: u32) {
         }
         x = x + v * h;
     } else {
-        x = x + pin_step(t, t + h);
+        x = pin_carry(pin_group(p.w), x, t, t + h);
     }
     positions_out[i] = vec4<f32>(x, p.w);
     normal_corrections[i] = 0.0;
@@ -301,7 +301,7 @@ fn project_color(t: u32) {
     if (color.first_iteration != 0u) {
         lambda = 0.0;
     }
-    let r = project_spring(pa.xyz, pb.xyz, pa.w * w, pb.w * w, s.rest_length, params.stiffness[s.kind],
+    let r = project_spring(pa.xyz, pb.xyz, max(pa.w, 0.0) * w, max(pb.w, 0.0) * w, s.rest_length, params.stiffness[s.kind],
                            params.substep_dt, lambda);
     lambdas[c] = r.lambda;
     positions_out[s.a] = vec4<f32>(r.x_a, pa.w);
@@ -310,7 +310,7 @@ fn project_color(t: u32) {
 
 fn project_colliders(i: u32) {
     let p = positions_out[i];
-    if (p.w == 0.0) {
+    if (p.w <= 0.0) {
         return;
     }
     let t = velocities_in[i].w;
@@ -338,8 +338,8 @@ fn finish(i: u32) {
     let t = velocities_in[i].w;
     let t_end = t + params.substep_dt;
     var x = p.xyz;
-    var v = pin_velocity(t_end);
-    if (p.w != 0.0) {
+    var v = pin_velocity(pin_group(p.w), x, t_end);
+    if (p.w > 0.0) {
         let x0 = positions_in[i].xyz;
         let correction = normal_corrections[i];
         if (EFFECT_FRICTION) {

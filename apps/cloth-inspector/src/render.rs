@@ -649,10 +649,8 @@ impl ViewRenderer {
         // The colliders' mesh is in world space: one instance at the origin, of scale 1.
         let mut instances = vec![InstanceData { center_radius: [0.0, 0.0, 0.0, 1.0], color: [0.55, 0.6, 0.68, 1.0] }];
         let marker = 0.25 * (info.rest_du.min(info.rest_dv)).max(0.004);
-        let d = scene.pin_displacement_at(inputs.time_s);
         for (i, _) in model.grid.pinned.iter().enumerate().filter(|(_, p)| **p) {
-            let p = model.grid.positions[i];
-            let p = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+            let p = scene.pin_position_at(model.grid.pin_group[i] as usize, model.grid.positions[i], inputs.time_s);
             instances.push(InstanceData {
                 center_radius: [p[0] as f32, p[1] as f32, p[2] as f32, marker],
                 color: [0.9, 0.1, 0.1, 1.0],

@@ -15,6 +15,9 @@ pub struct Grid {
     pub positions: Vec<[f64; 3]>,
     /// `true` for pinned vertices.
     pub pinned: Vec<bool>,
+    /// The pin group whose motion a pinned vertex follows: 0 for `cloth.pins`, `k + 1` for
+    /// `cloth.pin_groups[k]` (0 on free vertices).
+    pub pin_group: Vec<u8>,
     /// Distance between grid neighbours along u and along v, m.
     pub spacing: [f64; 2],
 }
@@ -42,14 +45,17 @@ impl Grid {
             }
         }
         let mut pinned = vec![false; positions.len()];
-        for pin in &spec.pins {
-            for index in pin_indices(pin, nx, ny) {
+        let mut pin_group = vec![0u8; positions.len()];
+        let groups = std::iter::once(&spec.pins).chain(spec.pin_groups.iter().map(|g| &g.pins));
+        for (group, pins) in groups.enumerate() {
+            for index in pins.iter().flat_map(|pin| pin_indices(pin, nx, ny)) {
                 if let Some(p) = pinned.get_mut(index as usize) {
                     *p = true;
+                    pin_group[index as usize] = group as u8;
                 }
             }
         }
-        Self { nx, ny, positions, pinned, spacing: spec.spacing() }
+        Self { nx, ny, positions, pinned, pin_group, spacing: spec.spacing() }
     }
 
     /// Number of vertices.

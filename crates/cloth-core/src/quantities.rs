@@ -37,8 +37,8 @@ pub struct SceneQuantities {
     pub gust_amplitude: f64,
     /// Angular frequency of the gusts `2π / period`, rad/s.
     pub gust_omega: f64,
-    /// How the pins move.
-    pub pin_motion: Motion,
+    /// How each pin group moves (`cloth.pin_motion`, then `cloth.pin_groups` in order).
+    pub pin_motions: Vec<Motion>,
     /// The colliders the cloth meets: the scene's with `Contact`, none without.
     pub colliders: Vec<ColliderSpec>,
 }
@@ -65,7 +65,9 @@ impl SceneQuantities {
             wind_coefficient_area: w.coefficient * size_u / (nx.max(2) - 1) as f64 * size_v / (ny.max(2) - 1) as f64,
             gust_amplitude: w.gust_amplitude,
             gust_omega: 2.0 * std::f64::consts::PI / w.gust_period,
-            pin_motion: scene.cloth.pin_motion,
+            pin_motions: std::iter::once(scene.cloth.pin_motion)
+                .chain(scene.cloth.pin_groups.iter().map(|g| g.motion))
+                .collect(),
             colliders: if scene.effects.contains(Effect::Contact) { scene.colliders.clone() } else { Vec::new() },
         }
     }

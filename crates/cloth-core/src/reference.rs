@@ -98,7 +98,8 @@ struct Params<R> {
     wind_coefficient_area: R,
     gust_amplitude: R,
     gust_omega: R,
-    pin_motion: MotionOf<R>,
+    /// Each pin group's motion (group 0: `cloth.pin_motion`).
+    pin_motions: Vec<MotionOf<R>>,
     /// Grid vertices along u and v (the wind's normals).
     nx: usize,
     ny: usize,
@@ -162,21 +163,29 @@ impl<R: Real> Params<R> {
             wind_coefficient_area: R::of(q.wind_coefficient_area),
             gust_amplitude: R::of(q.gust_amplitude),
             gust_omega: R::of(q.gust_omega),
-            pin_motion: MotionOf::of(&q.pin_motion),
+            pin_motions: q.pin_motions.iter().map(MotionOf::of).collect(),
             nx: q.resolution[0] as usize,
             ny: q.resolution[1] as usize,
             self_collision: SelfParams::of(scene),
         }
     }
 
-    /// A pin's move from time `from` to `to` (m) and its velocity at `to` (m/s): zero and zero
-    /// without `MovingPins`.
-    fn pin_step(&self, from: R, to: R, moving: bool) -> (Vec3<R>, Vec3<R>) {
+    /// Where a pin of group `group` at `x` at time `from` is at `to` (m), and its velocity there
+    /// (m/s): `x` and zero without `MovingPins`.
+    fn pin_move(&self, group: u8, x: Vec3<R>, from: R, to: R, moving: bool) -> (Vec3<R>, Vec3<R>) {
         if moving {
-            (self.pin_motion.displacement(to) - self.pin_motion.displacement(from), self.pin_motion.velocity_at(to))
+            let m = &self.pin_motions[group as usize];
+            let x = m.carry(x, from, to);
+            (x, m.point_velocity(x, to))
         } else {
-            (Vec3::zero(), Vec3::zero())
+            (x, Vec3::zero())
         }
+    }
+
+    /// The velocity of a pin of group `group` at `x` at time `t`, m/s (zero without
+    /// `MovingPins`).
+    fn pin_velocity(&self, group: u8, x: Vec3<R>, t: R, moving: bool) -> Vec3<R> {
+        if moving { self.pin_motions[group as usize].point_velocity(x, t) } else { Vec3::zero() }
     }
 }
 
@@ -191,6 +200,8 @@ pub struct ReferenceSimulator<R: Real> {
     /// XPBD only (empty otherwise): every spring once, grouped by colour.
     constraints: Vec<Constraint<R>>,
     pinned: Vec<bool>,
+    /// Each pinned vertex's group (its motion in `params.pin_motions`).
+    pin_group: Vec<u8>,
     positions: Vec<Vec3<R>>,
     velocities: Vec<Vec3<R>>,
     next_positions: Vec<Vec3<R>>,
@@ -247,6 +258,7 @@ impl<R: Real> ReferenceSimulator<R> {
                 Vec::new()
             },
             pinned: model.grid.pinned.clone(),
+            pin_group: model.grid.pin_group.clone(),
             next_positions: positions.clone(),
             next_velocities: velocities.clone(),
             positions,
@@ -352,14 +364,14 @@ impl<R: Real> ReferenceSimulator<R> {
         x.iter().zip(d).zip(&self.pinned).map(|((x, d), &p)| if p { *x } else { *x + *d * s }).collect()
     }
 
-    /// Moves the pinned vertices of the state `(x, v)` from time `from` to `to` (`MovingPins`):
-    /// `x += d(to) − d(from)`, `v = d'(to)`; without it they keep `x` and a zero velocity.
+    /// Moves the pinned vertices of the state `(x, v)` from time `from` to `to` (`MovingPins`),
+    /// each by its group's motion ([`MotionOf::carry`]) and at its velocity there; without it
+    /// they keep `x` and a zero velocity.
     fn move_pins(&self, x: &mut [Vec3<R>], v: &mut [Vec3<R>], from: R, to: R) {
-        let (step, velocity) = self.params.pin_step(from, to, self.moving_pins());
+        let moving = self.moving_pins();
         for i in 0..x.len() {
             if self.pinned[i] {
-                x[i] += step;
-                v[i] = velocity;
+                (x[i], v[i]) = self.params.pin_move(self.pin_group[i], x[i], from, to, moving);
             }
         }
     }
@@ -384,9 +396,9 @@ impl<R: Real> ReferenceSimulator<R> {
         self.move_pins(&mut x_new, &mut v_half, t, t1);
         let f2 = self.forces(&x_new, &v_half, t1, half);
         let mut v_new = self.offset(&v_half, &f2, kick);
-        let (_, pin_velocity) = self.params.pin_step(t1, t1, self.moving_pins());
-        for (v, _) in v_new.iter_mut().zip(&self.pinned).filter(|(_, pinned)| **pinned) {
-            *v = pin_velocity;
+        let moving = self.moving_pins();
+        for i in (0..v_new.len()).filter(|&i| self.pinned[i]) {
+            v_new[i] = self.params.pin_move(self.pin_group[i], x_new[i], t1, t1, moving).1;
         }
         if let Some(s) = &self.params.self_collision {
             for (v, _) in v_new.iter_mut().zip(&self.pinned).filter(|(_, pinned)| !**pinned) {
@@ -468,10 +480,16 @@ impl<R: Real> ReferenceSimulator<R> {
         let effects = self.scene.effects;
         let (t, t1) = (self.clock, self.clock + h);
         let x0 = self.positions.clone();
-        let (pin_step, pin_velocity) = p.pin_step(t, t1, self.moving_pins());
+        let moving_pins = self.moving_pins();
         let ctx = self.context(&x0, &self.velocities, t);
         let mut x: Vec<Vec3<R>> = (0..x0.len())
-            .map(|i| if self.pinned[i] { x0[i] + pin_step } else { x0[i] + ctx.predicted_velocity(i) * h })
+            .map(|i| {
+                if self.pinned[i] {
+                    p.pin_move(self.pin_group[i], x0[i], t, t1, moving_pins).0
+                } else {
+                    x0[i] + ctx.predicted_velocity(i) * h
+                }
+            })
             .collect();
         let inverse_mass = |i: usize| if self.pinned[i] { R::zero() } else { w };
         let moving = self.moving_colliders();
@@ -540,11 +558,14 @@ impl<R: Real> ReferenceSimulator<R> {
             }
         }
         let inv_h = R::one() / h;
-        let v: Vec<Vec3<R>> = x
-            .iter()
-            .zip(&x0)
-            .zip(&self.pinned)
-            .map(|((a, b), &pinned)| if pinned { pin_velocity } else { (*a - *b) * inv_h })
+        let v: Vec<Vec3<R>> = (0..x.len())
+            .map(|i| {
+                if self.pinned[i] {
+                    p.pin_velocity(self.pin_group[i], x[i], t1, moving_pins)
+                } else {
+                    (x[i] - x0[i]) * inv_h
+                }
+            })
             .collect();
         self.positions = x;
         self.velocities = v;
@@ -588,18 +609,19 @@ impl<R: Real> ReferenceSimulator<R> {
     /// The model's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).
     fn euler_substep(&mut self) {
         let (t, t1) = (self.clock, self.clock + self.params.dt);
-        let (pin_step, pin_velocity) = self.params.pin_step(t, t1, self.moving_pins());
+        let moving_pins = self.moving_pins();
         let mut next_positions = std::mem::take(&mut self.next_positions);
         let mut next_velocities = std::mem::take(&mut self.next_velocities);
         let ctx = self.context(&self.positions, &self.velocities, t);
-        let (x, pinned) = (&self.positions, &self.pinned);
+        let (x, pinned, groups, params) = (&self.positions, &self.pinned, &self.pin_group, &self.params);
         next_positions
             .par_iter_mut()
             .zip(next_velocities.par_iter_mut())
             .enumerate()
             .with_min_len(PARALLEL_CHUNK)
             .for_each(|(i, (x_new, v_new))| {
-                (*x_new, *v_new) = if pinned[i] { (x[i] + pin_step, pin_velocity) } else { ctx.vertex_update(i) };
+                (*x_new, *v_new) =
+                    if pinned[i] { params.pin_move(groups[i], x[i], t, t1, moving_pins) } else { ctx.vertex_update(i) };
             });
         self.next_positions = next_positions;
         self.next_velocities = next_velocities;

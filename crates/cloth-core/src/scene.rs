@@ -170,9 +170,13 @@ pub struct ClothSpec {
     pub pins: Vec<Pin>,
     /// Velocity every free vertex starts with, m/s. Default `(0, 0, 0)`.
     pub initial_velocity: [f64; 3],
-    /// How the pins move, for the `MovingPins` effect (every pin follows the same motion from
-    /// where it started). Default: no motion.
+    /// How the pins of `pins` move, for the `MovingPins` effect (each from where it started).
+    /// Default: no motion.
     pub pin_motion: Motion,
+    /// More pins, in groups that each follow their own motion (for `MovingPins`): `pins` with
+    /// `pin_motion` are the first group, these the next, at most [`MAX_PIN_GROUPS`] in all. A
+    /// vertex listed by several groups follows the last of them. Default: none.
+    pub pin_groups: Vec<PinGroup>,
     /// A wave the cloth starts folded into (its rest shape stays the flat rectangle). Default:
     /// none (amplitude 0).
     pub ripple: Ripple,
@@ -215,9 +219,24 @@ impl Default for ClothSpec {
             pins: Vec::new(),
             initial_velocity: [0.0; 3],
             pin_motion: Motion::default(),
+            pin_groups: Vec::new(),
             ripple: Ripple::default(),
         }
     }
+}
+
+/// How many pin groups a cloth may have: `cloth.pins` and up to three `cloth.pin_groups` (the
+/// GPU parameters hold this many motions).
+pub const MAX_PIN_GROUPS: usize = 4;
+
+/// Pins that move together: every vertex of `pins` follows `motion` from where it started.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PinGroup {
+    /// The group's vertices.
+    pub pins: Vec<Pin>,
+    /// How they move, for the `MovingPins` effect. Default: no motion.
+    pub motion: Motion,
 }
 
 /// How the cloth rectangle is oriented. Vertex `(i, j)` sits at
@@ -353,6 +372,12 @@ impl Default for SphereSpec {
 /// A prescribed motion from a start position: the displacement at time `t` (s) is
 /// `d(t) = velocity · t + amplitude · sin(2π frequency t)`, m, and the velocity
 /// `d'(t) = velocity + amplitude · 2π frequency · cos(2π frequency t)`, m/s.
+///
+/// Pins may also turn: with an angular velocity `ω` (rad/s) about an axis through `pivot`, which
+/// the displacement carries along, a pin that starts at `x₀` is at
+/// `x(t) = p(t) + R(ω t)(x₀ − pivot)` with `p(t) = pivot + d(t)` and `R(θ)` the rotation by `|θ|`
+/// about `θ/|θ|` (right-handed), and moves at `d'(t) + ω × (x(t) − p(t))`. Colliders only
+/// translate (their `angular_velocity` must be zero).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Motion {
@@ -362,6 +387,10 @@ pub struct Motion {
     pub amplitude: [f64; 3],
     /// Frequency of the oscillation, Hz. Default 0.
     pub frequency: f64,
+    /// Angular velocity `ω`, rad/s: the axis times the rate (pins only). Default `(0, 0, 0)`.
+    pub angular_velocity: [f64; 3],
+    /// The point the rotation turns about at `t = 0`, m. Default `(0, 0, 0)`.
+    pub pivot: [f64; 3],
 }
 
 impl Motion {
@@ -370,11 +399,26 @@ impl Motion {
         2.0 * std::f64::consts::PI * self.frequency
     }
 
-    /// Largest speed of the motion, m/s (`|velocity| + |amplitude| · 2π f`, a bound).
+    /// Largest speed of the motion's translation, m/s (`|velocity| + |amplitude| · 2π f`, a
+    /// bound).
     pub fn max_speed(&self) -> f64 {
-        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         norm(self.velocity) + norm(self.amplitude) * self.angular_frequency()
     }
+
+    /// Largest speed of a point `radius` (m) from the pivot, m/s: the translation's bound plus
+    /// `|ω| · radius`.
+    pub fn max_speed_at(&self, radius: f64) -> f64 {
+        self.max_speed() + norm(self.angular_velocity) * radius
+    }
+
+    /// Whether the motion turns (a non-zero angular velocity).
+    pub fn turns(&self) -> bool {
+        self.angular_velocity != [0.0; 3]
+    }
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 /// The wind of the `Wind` effect: air moving at `velocity · (1 + gust_amplitude · sin(2π t /

@@ -179,12 +179,21 @@ impl Checker {
         self.non_negative(&f("friction"), collider.friction, "(dimensionless)");
         self.non_negative(&f("damping"), collider.damping, "N·s/m");
         self.motion(&f("motion"), &collider.motion);
+        if collider.motion.turns() {
+            self.fail(
+                f("motion.angular_velocity"),
+                format!("is {:?} rad/s, but colliders only translate", collider.motion.angular_velocity),
+                "give (0, 0, 0); turning motions are for pins",
+            );
+        }
     }
 
     fn motion(&mut self, field: &str, m: &crate::scene::Motion) {
         self.vector(&format!("{field}.velocity"), m.velocity);
         self.vector(&format!("{field}.amplitude"), m.amplitude);
         self.non_negative(&format!("{field}.frequency"), m.frequency, "Hz");
+        self.vector(&format!("{field}.angular_velocity"), m.angular_velocity);
+        self.vector(&format!("{field}.pivot"), m.pivot);
     }
 
     /// The `self_collision` field, and what the speed limit needs of the substep: a vertex at the
@@ -219,7 +228,7 @@ impl Checker {
             self.fail(
                 "self_collision.max_speed",
                 format!(
-                    "is {} m/s: at the limit a vertex moves {:.3e} m a substep, more than half the thickness, {:.3e} m,                      so it could pass through another layer",
+                    "is {} m/s: at the limit a vertex moves {:.3e} m a substep, more than half the thickness, {:.3e} m, so it could pass through another layer",
                     q.max_speed,
                     q.max_speed * dt,
                     q.thickness / 2.0
@@ -230,16 +239,37 @@ impl Checker {
                 ),
             );
         }
-        let pins = scene.cloth.pin_motion.max_speed();
-        if scene.effects.contains(Effect::MovingPins) && pins > q.max_speed {
-            self.fail(
-                "cloth.pin_motion",
-                format!(
-                    "moves the pins at up to {pins:.3} m/s, faster than self_collision.max_speed, {} m/s (the spatial                      hash's margin assumes no vertex is faster)",
-                    q.max_speed
-                ),
-                "slow the pins' motion or raise self_collision.max_speed",
-            );
+        if !scene.effects.contains(Effect::MovingPins) {
+            return;
+        }
+        // A turning group's pins are as fast as the one farthest from its pivot.
+        let grid = crate::grid::Grid::new(&scene.cloth);
+        for group in 0..=scene.cloth.pin_groups.len() {
+            let Some(motion) = scene.pin_group_motion(group) else { continue };
+            let radius = (0..grid.vertex_count())
+                .filter(|&i| grid.pinned[i] && grid.pin_group[i] as usize == group)
+                .map(|i| {
+                    let d = [0, 1, 2].map(|k| grid.positions[i][k] - motion.pivot[k]);
+                    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+                })
+                .fold(0.0, f64::max);
+            let speed = if motion.turns() { motion.max_speed_at(radius) } else { motion.max_speed() };
+            if speed > q.max_speed {
+                let field = if group == 0 {
+                    "cloth.pin_motion".to_string()
+                } else {
+                    format!("cloth.pin_groups[{}].motion", group - 1)
+                };
+                self.fail(
+                    field,
+                    format!(
+                        "moves its pins at up to {speed:.3} m/s, faster than self_collision.max_speed, {} m/s \
+                         (the spatial hash's margin assumes no vertex is faster)",
+                        q.max_speed
+                    ),
+                    "slow the pins' motion or raise self_collision.max_speed",
+                );
+            }
         }
     }
 
@@ -312,12 +342,16 @@ impl Scene {
             );
         }
         let vertex_count = nx as u64 * ny as u64;
-        for (k, pin) in cloth.pins.iter().enumerate().filter(|_| grid_ok) {
+        let groups = std::iter::once(("cloth.pins".to_string(), &cloth.pins))
+            .chain(cloth.pin_groups.iter().enumerate().map(|(k, g)| (format!("cloth.pin_groups[{k}].pins"), &g.pins)));
+        let pins = groups
+            .flat_map(|(field, pins)| pins.iter().enumerate().map(move |(k, pin)| (format!("{field}[{k}]"), pin)));
+        for (field, pin) in pins.filter(|_| grid_ok) {
             if let Some(bad) = pin_indices(pin, nx, ny).into_iter().find(|&i| i >= vertex_count) {
                 let shown =
                     if bad == u64::MAX { "a point outside the grid".to_string() } else { format!("vertex {bad}") };
                 c.fail(
-                    format!("cloth.pins[{k}]"),
+                    field,
                     format!("{pin:?} names {shown}, but the grid has {vertex_count} vertices ({nx}x{ny})"),
                     format!("use an index below {vertex_count}, or i < {nx} and j < {ny}"),
                 );
@@ -341,6 +375,20 @@ impl Scene {
             c.collider(&format!("colliders[{k}]"), collider);
         }
         c.motion("cloth.pin_motion", &cloth.pin_motion);
+        if cloth.pin_groups.len() >= crate::scene::MAX_PIN_GROUPS {
+            c.fail(
+                "cloth.pin_groups",
+                format!(
+                    "lists {} groups; with cloth.pins a cloth may have {} pin groups",
+                    cloth.pin_groups.len(),
+                    crate::scene::MAX_PIN_GROUPS
+                ),
+                format!("merge groups that move alike, down to {}", crate::scene::MAX_PIN_GROUPS - 1),
+            );
+        }
+        for (k, group) in cloth.pin_groups.iter().enumerate() {
+            c.motion(&format!("cloth.pin_groups[{k}].motion"), &group.motion);
+        }
         if c.finite("cloth.ripple.amplitude", cloth.ripple.amplitude) && cloth.ripple.amplitude != 0.0 {
             c.positive("cloth.ripple.wavelength", cloth.ripple.wavelength, "m");
         }
@@ -555,6 +603,47 @@ mod tests {
         let f: Vec<_> = err.problems().iter().map(|p| p.field.as_str()).collect();
         assert_eq!(f, ["cloth.pins[1]", "cloth.pins[2]"]);
         assert!(err.to_string().contains("Vertex(16) names vertex 16, but the grid has 16 vertices (4x4)"), "{err}");
+    }
+
+    #[test]
+    fn pin_groups_are_checked_like_pins_and_colliders_do_not_turn() {
+        use crate::scene::{Motion, PinGroup};
+        let mut s = Scene::default();
+        s.cloth.resolution = [4, 4];
+        let turning = Motion { angular_velocity: [0.0, 1.0, 0.0], ..Default::default() };
+        s.cloth.pin_groups = vec![PinGroup { pins: vec![Pin::Vertex(3), Pin::Vertex(20)], motion: turning }];
+        s.colliders[0].motion = turning;
+        let err = s.validate().unwrap_err();
+        let f: Vec<_> = err.problems().iter().map(|p| p.field.as_str()).collect();
+        assert_eq!(f, ["cloth.pin_groups[0].pins[1]", "colliders[0].motion.angular_velocity"], "{err}");
+        assert!(err.to_string().contains("colliders only translate"), "{err}");
+        // Four groups at most, cloth.pins among them.
+        s.colliders[0].motion = Motion::default();
+        s.cloth.pin_groups = vec![PinGroup::default(); crate::scene::MAX_PIN_GROUPS - 1];
+        assert!(s.validate().is_ok());
+        s.cloth.pin_groups.push(PinGroup::default());
+        let err = s.validate().unwrap_err().to_string();
+        assert!(err.contains("cloth.pin_groups: lists 4 groups; with cloth.pins a cloth may have 4"), "{err}");
+    }
+
+    #[test]
+    fn a_turning_pin_group_is_as_fast_as_its_farthest_pin() {
+        // The default cloth is 2 m wide: an edge turning about its middle at 5 rad/s moves its
+        // end pins at 5 m/s, within a 6 m/s speed limit; at 7 rad/s they are too fast.
+        let mut s = Scene::default();
+        s.effects = s.effects.with(Effect::MovingPins).with(Effect::SelfCollision);
+        s.cloth.pin_groups = vec![crate::scene::PinGroup {
+            pins: vec![Pin::Edge(crate::scene::Edge::Top)],
+            motion: crate::scene::Motion {
+                angular_velocity: [0.0, 5.0, 0.0],
+                pivot: [0.0, 1.8, -1.0],
+                ..Default::default()
+            },
+        }];
+        s.validate().unwrap();
+        s.cloth.pin_groups[0].motion.angular_velocity = [0.0, 7.0, 0.0];
+        let err = s.validate().unwrap_err().to_string();
+        assert!(err.contains("cloth.pin_groups[0].motion: moves its pins at up to 7.000 m/s"), "{err}");
     }
 
     #[test]

@@ -92,12 +92,12 @@ pub fn packed_buffer_bytes(vertices: u64) -> [u64; 2] {
     [16 * vertices, 8 * (vertices + 1)]
 }
 
-/// The pin bit mask of a `vec4` position buffer (`w = 0` pinned): bit `i % 32` of word `i / 32`
+/// The pin bit mask of a `vec4` position buffer (`w ≤ 0` pinned): bit `i % 32` of word `i / 32`
 /// set where vertex `i` is pinned; at least one word.
 pub fn pin_bits(positions: &[[f32; 4]]) -> Vec<u32> {
     let mut bits = vec![0u32; positions.len().div_ceil(32).max(1)];
     for (i, p) in positions.iter().enumerate() {
-        if p[3] == 0.0 {
+        if p[3] <= 0.0 {
             bits[i / 32] |= 1 << (i % 32);
         }
     }

@@ -49,7 +49,7 @@ macro_rules! gpu_struct {
 }
 
 gpu_struct! {
-    /// Simulation parameters, one uniform buffer (208 bytes). Every field can change between
+    /// Simulation parameters, one uniform buffer (432 bytes). Every field can change between
     /// frames without rebuilding a pipeline.
     GpuSimParams as "SimParams" {
         /// Gravitational acceleration, m/s² (xyz; w unused).
@@ -78,10 +78,11 @@ gpu_struct! {
         wind: [f32; 4],
         /// Gusts: `x` relative amplitude, `y` angular frequency `2π / period`, rad/s.
         gust: [f32; 4],
-        /// Pin motion: steady velocity, m/s (xyz), and `w` angular frequency, rad/s.
-        pin_velocity: [f32; 4],
-        /// Pin motion: amplitude of the oscillation, m (xyz).
-        pin_amplitude: [f32; 4],
+        /// The pin groups' motions ([`PIN_MOTION_WORDS`] `vec4`s each, group `g` from
+        /// `PIN_MOTION_WORDS · g`): steady velocity, m/s (xyz), and `w` the angular frequency,
+        /// rad/s; amplitude, m (xyz); angular velocity, rad/s (xyz; zero: the group only
+        /// translates); pivot, m (xyz). A pinned vertex's position `w` is minus its group.
+        pin_motion: [[f32; 4]; 16],
         /// Rest lengths, m: structural along u, along v, shear (bend: exactly twice the
         /// structural ones). The kernels compute the springs from the grid with these.
         rest_lengths: [f32; 4],
@@ -96,6 +97,9 @@ gpu_struct! {
         self_table: [u32; 4],
     }
 }
+
+/// `vec4`s a pin group's motion takes in [`GpuSimParams::pin_motion`].
+pub const PIN_MOTION_WORDS: usize = 4;
 
 /// Buckets a workgroup of the hash's prefix sum scans (`shaders/*/self_hash.*`).
 pub const HASH_SCAN_BLOCK: u32 = 256;
@@ -231,7 +235,15 @@ impl GpuSimParams {
         let f = |v: f64| v as f32;
         let v4 = |v: [f64; 3], w: f64| [f(v[0]), f(v[1]), f(v[2]), f(w)];
         let [nx, ny] = q.resolution;
-        let pins = &q.pin_motion;
+        let mut pin_motion = [[0.0; 4]; 16];
+        for (g, m) in q.pin_motions.iter().enumerate().take(cloth_core::scene::MAX_PIN_GROUPS) {
+            pin_motion[PIN_MOTION_WORDS * g..PIN_MOTION_WORDS * (g + 1)].copy_from_slice(&[
+                v4(m.velocity, m.angular_frequency()),
+                v4(m.amplitude, 0.0),
+                v4(m.angular_velocity, 0.0),
+                v4(m.pivot, 0.0),
+            ]);
+        }
         let s = cloth_core::self_collision::SelfCollisionQuantities::of(scene);
         let table = SelfHashTable::of(scene);
         Self {
@@ -248,8 +260,7 @@ impl GpuSimParams {
             effects: scene.effects.bits(),
             wind: v4(q.wind_velocity, q.wind_coefficient_area),
             gust: [f(q.gust_amplitude), f(q.gust_omega), 0.0, 0.0],
-            pin_velocity: v4(pins.velocity, pins.angular_frequency()),
-            pin_amplitude: v4(pins.amplitude, 0.0),
+            pin_motion,
             rest_lengths: v4(q.rest_lengths, 0.0),
             self_contact: [f(s.thickness), f(s.stiffness), f(s.damping), f(s.friction)],
             self_hash: [f(s.cell), f(s.max_speed), f(s.spacing[0]), f(s.spacing[1])],

@@ -215,7 +215,7 @@ pub struct StateBuffers {
     pub colliders: BufferId,
     /// The mesh colliders' distance fields ([`GpuCollider::distance_fields_of`]), `f32` each.
     pub distance_fields: BufferId,
-    /// Positions `vec4` (w 1 free, 0 pinned), m, ping-pong.
+    /// Positions `vec4` (w 1 free, minus its pin group pinned), m, ping-pong.
     pub positions: [BufferId; 2],
     /// Velocities `vec4` (w the state's time), m/s, ping-pong.
     pub velocities: [BufferId; 2],
@@ -361,8 +361,11 @@ impl Plan {
         let model = ClothModel::new(scene);
         let v0 = scene.cloth.initial_velocity.map(|x| x as f32);
         let grid = &model.grid;
-        let positions: Vec<[f32; 4]> = (grid.positions.iter().zip(&grid.pinned))
-            .map(|(p, &pinned)| [p[0] as f32, p[1] as f32, p[2] as f32, if pinned { 0.0 } else { 1.0 }])
+        // w: 1 free, minus the pin group pinned (the kernels' pin_group).
+        let positions: Vec<[f32; 4]> = (grid.positions.iter().zip(&grid.pinned).zip(&grid.pin_group))
+            .map(|((p, &pinned), &group)| {
+                [p[0] as f32, p[1] as f32, p[2] as f32, if pinned { -f32::from(group) } else { 1.0 }]
+            })
             .collect();
         let velocities: Vec<[f32; 4]> =
             grid.pinned.iter().map(|&pinned| if pinned { [0.0; 4] } else { [v0[0], v0[1], v0[2], 0.0] }).collect();
@@ -483,7 +486,8 @@ fn force_based(
                     pass: Pass { pipeline, groups, workgroups, dynamic_offset: None },
                     substeps: tile.substeps,
                 });
-            } else if tuning.packed_state && !self_collision {
+            } else if tuning.packed_state && !self_collision && scene.cloth.pin_groups.is_empty() {
+                // (The packed state marks pins with one bit: it has no room for their groups.)
                 schedule.packed = Some(packed(b, &group, kernel, w, blocks.workgroups, positions));
             }
         }

@@ -93,7 +93,7 @@ pub struct GpuSimulator<B: GpuBackend> {
     dispatches: Vec<Dispatch>,
     /// Which of the two state buffers holds the current state.
     current: usize,
-    /// `w` of each vertex's position: 1 free, 0 pinned.
+    /// `w` of each vertex's position: 1 free, minus its pin group pinned.
     free: Vec<f32>,
     /// Pairs of the timer written since it was last read, while timing is on.
     timed: Option<u32>,

@@ -4,7 +4,7 @@
 use cloth_core::Effect;
 use eframe::egui;
 
-use super::{PanelContext, motion, problems_for, quantity, vector};
+use super::{PanelContext, pin_motion, problems_for, quantity, vector};
 
 pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
     ui.label(
@@ -76,9 +76,13 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
     }
     if ctx.scene.effects.contains(Effect::MovingPins) {
         ui.separator();
-        ui.strong("Moving pins (every pin from where it starts)");
-        motion(ui, "pin motion", &mut ctx.scene.cloth.pin_motion);
+        ui.strong("Moving pins (each group's pins from where they start)");
+        pin_motion(ui, "pin motion (cloth.pins)", &mut ctx.scene.cloth.pin_motion);
         problems_for(ui, ctx.problems, "cloth.pin_motion");
+        for (k, group) in ctx.scene.cloth.pin_groups.iter_mut().enumerate() {
+            pin_motion(ui, &format!("pin group {k}"), &mut group.motion);
+        }
+        problems_for(ui, ctx.problems, "cloth.pin_groups");
     }
 }
 

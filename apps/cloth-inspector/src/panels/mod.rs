@@ -47,6 +47,14 @@ pub fn motion(ui: &mut egui::Ui, label: &str, value: &mut cloth_core::scene::Mot
     changed | quantity(ui, "  frequency f", &mut value.frequency, "Hz", 0.01)
 }
 
+/// A pins' motion: the translation of [`motion`], and a rotation about a pivot it carries.
+pub fn pin_motion(ui: &mut egui::Ui, label: &str, value: &mut cloth_core::scene::Motion) -> bool {
+    let mut changed = motion(ui, label, value);
+    ui.label(egui::RichText::new("  turning: x(t) = p(t) + R(ω t)(x₀ − pivot), p(t) = pivot + d(t)").weak());
+    changed |= vector(ui, "  angular velocity ω", &mut value.angular_velocity, "rad/s", 0.01);
+    changed | vector(ui, "  pivot", &mut value.pivot, "m", 0.01)
+}
+
 /// A 3-vector with its unit.
 pub fn vector(ui: &mut egui::Ui, label: &str, value: &mut [f64; 3], unit: &str, speed: f64) -> bool {
     ui.horizontal(|ui| {
