@@ -556,12 +556,13 @@ fn cloth_falls_onto_a_mesh(backend: &Backend) {
 fn heap_passes_through_itself_without_self_collision(backend: &Backend) {
     let mut scene = sized(cloth_conformance::scene("heap.ron"), 32, 30);
     scene.effects = scene.effects.without(cloth_core::Effect::SelfCollision);
-    passes_through_itself(backend, &scene);
+    passes_through_itself(backend, &scene, 10);
 }
 
 /// The work moving pins may do on `scene`'s cloth, J, for the energy bound: they may wind every
-/// spring up to twice its rest length (`Σ ½ k L₀²`, the strain bound the twist cases assert) and
-/// fling the cloth's mass `M` at up to twice their speed `U` (`½ M (2U)²`, as a moving wall).
+/// spring up to three times its rest length (`Σ ½ k (2 L₀)²`, strain 2, the bound the twist cases
+/// assert) and fling the cloth's mass `M` at up to twice their speed `U` (`½ M (2U)²`, as a
+/// moving wall).
 fn pin_work(scene: &Scene) -> f64 {
     let model = ClothModel::new(scene);
     let k = |kind: cloth_core::SpringKind| match kind {
@@ -569,7 +570,7 @@ fn pin_work(scene: &Scene) -> f64 {
         cloth_core::SpringKind::Shear => scene.springs.shear.stiffness,
         cloth_core::SpringKind::Bend => scene.springs.bend.stiffness,
     };
-    let elastic: f64 = model.springs.iter().map(|s| 0.5 * k(s.kind) * s.rest_length * s.rest_length).sum();
+    let elastic: f64 = model.springs.iter().map(|s| 0.5 * k(s.kind) * (2.0 * s.rest_length).powi(2)).sum();
     let radius = 0.5 * scene.cloth.size[0].hypot(scene.cloth.size[1]);
     let speed = (0..=scene.cloth.pin_groups.len())
         .filter_map(|g| scene.pin_group_motion(g))
@@ -580,18 +581,23 @@ fn pin_work(scene: &Scene) -> f64 {
 }
 
 /// Every integrator on `scene` (without self-collision): more than 0 edge–triangle crossings in
-/// some frame, counted every 10 frames and at the end.
-fn passes_through_itself(backend: &Backend, scene: &Scene) {
+/// some frame, counted every `every` frames and at the end.
+fn passes_through_itself(backend: &Backend, scene: &Scene, every: u32) {
+    passes_through_itself_under(backend, scene, every, &Integrator::ALL);
+}
+
+/// [`passes_through_itself`] under the given integrators.
+fn passes_through_itself_under(backend: &Backend, scene: &Scene, every: u32, integrators: &[Integrator]) {
     let work = if scene.effects.contains(cloth_core::Effect::MovingPins) { pin_work(scene) } else { 0.0 };
-    for integrator in Integrator::ALL {
+    for &integrator in integrators {
         let scene = with_integrator(scene, integrator);
-        let Some(outcome) = run_checked_with_work(backend, &scene, scene.time.frames, 10, work) else { return };
+        let Some(outcome) = run_checked_with_work(backend, &scene, scene.time.frames, every, work) else { return };
         let [nx, ny] = scene.cloth.resolution;
         let counts: Vec<usize> = (outcome.states.iter())
             .map(|s| cloth_core::intersections::count(&s.positions, nx, ny).expect("the cloth is not torn"))
             .collect();
         let most = counts.iter().copied().max().unwrap_or(0);
-        eprintln!("{}: self-intersections every 10 frames {counts:?}", outcome.name);
+        eprintln!("{}: self-intersections every {every} frames {counts:?}", outcome.name);
         assert!(most > 0, "{}: no self-intersection counted without self-collision", outcome.name);
     }
 }
@@ -599,10 +605,15 @@ fn passes_through_itself(backend: &Backend, scene: &Scene) {
 /// Every integrator on `scene` (with self-collision): not one edge–triangle crossing at any
 /// frame. Returns each integrator's final centroid, m.
 fn never_passes_through_itself(backend: &Backend, scene: &Scene) -> Vec<[f64; 3]> {
+    never_passes_through_itself_under(backend, scene, &Integrator::ALL)
+}
+
+/// [`never_passes_through_itself`] under the given integrators.
+fn never_passes_through_itself_under(backend: &Backend, scene: &Scene, integrators: &[Integrator]) -> Vec<[f64; 3]> {
     assert!(scene.effects.contains(cloth_core::Effect::SelfCollision), "{} lists SelfCollision", scene.name);
     let mut centroids = Vec::new();
     let work = if scene.effects.contains(cloth_core::Effect::MovingPins) { pin_work(scene) } else { 0.0 };
-    for integrator in Integrator::ALL {
+    for &integrator in integrators {
         let scene = with_integrator(scene, integrator);
         let Some(outcome) = run_checked_with_work(backend, &scene, scene.time.frames, 1, work) else {
             return centroids;
@@ -620,7 +631,7 @@ fn never_passes_through_itself(backend: &Backend, scene: &Scene) -> Vec<[f64; 3]
             outcome.max_strain
         );
         if work > 0.0 {
-            assert!(outcome.max_strain < 1.0, "{}: a spring more than doubled its length", outcome.name);
+            assert!(outcome.max_strain < 2.0, "{}: a spring more than tripled its length", outcome.name);
         }
         centroids.push(c);
     }
@@ -634,6 +645,35 @@ fn heap_with_self_collision_never_passes_through_itself(backend: &Backend) {
     let scene = sized(cloth_conformance::scene("heap.ron"), 16, 15);
     for c in never_passes_through_itself(backend, &scene) {
         assert!(c[1] < 0.5, "{}: the heap did not fall (centroid {c:?})", backend.name);
+    }
+}
+
+/// The folding drape of `scenes/drape_folds.ron` at a size lavapipe runs: 48 × 48, dropped from
+/// 5 cm above the sphere instead of 30 cm, so that its free corners fold onto the cloth within
+/// 36 frames. With self-collision not one edge–triangle crossing at any frame; with it taken out,
+/// more than 0 in some frame (counted at every frame: the corners pass through the cloth from
+/// frame 30 to 34 on, by integrator and backend; at 40 × 40 they do not fold). At this size the
+/// case takes minutes on lavapipe and the CPU under all four integrators, so it runs semi-implicit
+/// Euler and XPBD, one force-based integrator and the position-based one, and the run without the
+/// effect, which shows what the scene needs rather than what a backend does, on the f32 reference
+/// alone; with `CLOTH_FULL_SIZE` (`scripts/gpu-check.sh stability`) it runs the scene as its file
+/// gives it, 128 × 128 for 240 frames, under every integrator, both halves on every backend.
+fn folded_drape_never_passes_through_itself(backend: &Backend) {
+    let file = cloth_conformance::scene("drape_folds.ron");
+    let (scene, integrators) = if std::env::var_os("CLOTH_FULL_SIZE").is_some() {
+        (file, Integrator::ALL.to_vec())
+    } else {
+        let mut scene = sized(file, 48, 36);
+        scene.cloth.center[1] = 1.55;
+        (scene, vec![Integrator::SemiImplicitEuler, Integrator::Xpbd])
+    };
+    for c in never_passes_through_itself_under(backend, &scene, &integrators) {
+        assert!(c[1] < 1.55, "{}: the drape did not fall (centroid {c:?})", backend.name);
+    }
+    if backend.name == cloth_conformance::CPU.name || integrators.len() == Integrator::ALL.len() {
+        let mut without = scene.clone();
+        without.effects = without.effects.without(cloth_core::Effect::SelfCollision);
+        passes_through_itself_under(backend, &without, 1, &integrators);
     }
 }
 
@@ -655,7 +695,7 @@ fn twist_with_self_collision_never_passes_through_itself(backend: &Backend) {
 fn twist_passes_through_itself_without_self_collision(backend: &Backend) {
     let mut scene = sized(cloth_conformance::scene("twist.ron"), 16, 60);
     scene.effects = scene.effects.without(cloth_core::Effect::SelfCollision);
-    passes_through_itself(backend, &scene);
+    passes_through_itself(backend, &scene, 10);
 }
 
 macro_rules! cases_for_backend {
@@ -706,6 +746,7 @@ stability_suite! {
         heap_with_self_collision_never_passes_through_itself,
         twist_passes_through_itself_without_self_collision,
         twist_with_self_collision_never_passes_through_itself,
+        folded_drape_never_passes_through_itself,
     ]
 }
 
