@@ -164,7 +164,8 @@ impl Scene {
             Some("the grid resolution".into())
         } else if a.size != b.size || a.orientation != b.orientation {
             Some("the cloth size or orientation (spring rest lengths)".into())
-        } else if a.pins != b.pins {
+        } else if a.pins != b.pins || a.pin_groups.iter().map(|g| &g.pins).ne(b.pin_groups.iter().map(|g| &g.pins)) {
+            // (A group's motion is a parameter; which vertices it holds is the grid's.)
             Some("the pins".into())
         } else if self.effects != new.effects {
             Some("the set of effects".into())
@@ -203,5 +204,21 @@ fn mesh_source(shape: &crate::colliders::Shape) -> Option<(&str, u64, u32)> {
     match shape {
         crate::colliders::Shape::Mesh { file, scale, cells, .. } => Some((file.as_str(), scale.to_bits(), *cells)),
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::{Edge, Motion, Pin, PinGroup, Scene};
+
+    #[test]
+    fn other_pins_rebuild_a_simulator_and_other_pin_motions_do_not() {
+        let a = Scene::default();
+        let mut b = a.clone();
+        b.cloth.pin_groups.push(PinGroup { pins: vec![Pin::Edge(Edge::Top)], motion: Motion::default() });
+        assert_eq!(a.rebuild_reason(&b).as_deref(), Some("the pins"));
+        let mut c = b.clone();
+        c.cloth.pin_groups[0].motion.angular_velocity = [0.0, 1.0, 0.0];
+        assert_eq!(b.rebuild_reason(&c), None);
     }
 }
