@@ -7,8 +7,8 @@
 #
 #   conformance  the conformance suite and the block-order test with CI=1 (a missing adapter
 #                fails), then `cloth run` on each GPU backend
-#   stability    the stability suite's GPU cases with CI=1, the collider cases at their scenes' own
-#                size on every backend, then the soak at a million substeps on
+#   stability    the stability suite's GPU cases with CI=1, the collider and self-collision cases
+#                at their scenes' own size on every backend, then the soak at a million substeps on
 #                each backend (SOAK_SECONDS each, default 200: XPBD's million substeps do not end
 #                in that; 0 skips the soak)
 #   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
@@ -64,8 +64,8 @@ if [[ " $checks " == *" stability "* ]]; then
   stability=$(test_binary "${STABILITY:-}" stability)
   echo "== stability (GPU cases, CI=1)"
   CI=1 "$stability" --test-threads 2 wgpu:: vulkano:: 2>&1 | tee "$OUT/stability.txt" | grep -E "^test |test result|panicked" | tail -60
-  echo "== stability: the collider scenes at their own size (CLOTH_FULL_SIZE)"
-  CI=1 CLOTH_FULL_SIZE=1 "$stability" --test-threads 2 --nocapture floor tilted cloth_falls heap 2>&1 |
+  echo "== stability: the collider and self-collision scenes at their own size (CLOTH_FULL_SIZE)"
+  CI=1 CLOTH_FULL_SIZE=1 "$stability" --test-threads 2 --nocapture floor tilted cloth_falls heap twist folded sliding 2>&1 |
     tee "$OUT/stability-full.txt" | grep -E "^test |test result|panicked|penetration|self-intersections" | tail -80
   [ "${SOAK_SECONDS:-200}" = 0 ] || for b in wgpu vulkano; do
     echo "== the soak at a million substeps on $b (${SOAK_SECONDS:-200} s at most)"

@@ -216,6 +216,11 @@ pub struct ReferenceSimulator<R: Real> {
     /// since it was built (a written state rebuilds it at the next substep).
     hash: CellHash,
     hash_stale: bool,
+    /// Scratch reused from substep to substep, so a substep allocates nothing for
+    /// self-collision: the positions at the substep's start (the speed limit's reference) and
+    /// XPBD's averaged self-contact corrections.
+    substep_start: Vec<Vec3<R>>,
+    self_corrections: Vec<Vec3<R>>,
 }
 
 /// The `f32` reference: the oracle GPU results are compared with.
@@ -269,6 +274,8 @@ impl<R: Real> ReferenceSimulator<R> {
             substeps_run: 0,
             hash: CellHash::default(),
             hash_stale: true,
+            substep_start: Vec::new(),
+            self_corrections: Vec::new(),
             scene,
         }
     }
@@ -312,16 +319,18 @@ impl<R: Real> ReferenceSimulator<R> {
         }
         // The speed limit applies at the substep's end (velocity Verlet applies it itself, its
         // drift before its second kick).
-        let limited = self.scene.integrator != Integrator::VelocityVerlet;
-        let start = self.params.self_collision.filter(|_| limited).map(|_| self.positions.clone());
+        let limited = self.params.self_collision.is_some() && self.scene.integrator != Integrator::VelocityVerlet;
+        if limited {
+            self.substep_start.clone_from(&self.positions);
+        }
         match self.scene.integrator {
             Integrator::SemiImplicitEuler => self.euler_substep(),
             Integrator::VelocityVerlet => self.verlet_substep(),
             Integrator::RungeKutta4 => self.rk4_substep(),
             Integrator::Xpbd => self.xpbd_substep(),
         }
-        if let (Some(s), Some(start)) = (&self.params.self_collision, start) {
-            let (max_speed, dt) = (s.max_speed, self.params.dt);
+        if let Some(s) = self.params.self_collision.as_ref().filter(|_| limited) {
+            let (max_speed, dt, start) = (s.max_speed, self.params.dt, &self.substep_start);
             for i in (0..start.len()).filter(|&i| !self.pinned[i]) {
                 (self.positions[i], self.velocities[i]) =
                     limit_speed(start[i], self.positions[i], self.velocities[i], max_speed, dt);
@@ -503,6 +512,7 @@ impl<R: Real> ReferenceSimulator<R> {
                 (end, end - start)
             })
             .collect();
+        let mut corrections = std::mem::take(&mut self.self_corrections);
         let mut lambda = vec![R::zero(); self.constraints.len()];
         let mut normal_correction = vec![R::zero(); x.len()];
         for _ in 0..XPBD_ITERATIONS {
@@ -525,7 +535,7 @@ impl<R: Real> ReferenceSimulator<R> {
                 (x[a], x[b]) = (x_a, x_b);
             }
             if let Some(s) = &p.self_collision {
-                self.project_self_contacts(&mut x, &x0, s);
+                self.project_self_contacts(&mut x, &x0, s, &mut corrections);
             }
             for (i, xi) in x.iter_mut().enumerate() {
                 if self.pinned[i] {
@@ -570,38 +580,52 @@ impl<R: Real> ReferenceSimulator<R> {
         self.positions = x;
         self.velocities = v;
         self.clock = t1;
+        self.self_corrections = corrections;
     }
 
     /// XPBD's self-contacts, one Jacobi sweep: every free vertex's corrections
     /// ([`self_contact_correction`]) for the vertices the hash lists near it, computed from `x`
     /// and averaged, then applied together (the GPU's one invocation per vertex).
-    fn project_self_contacts(&self, x: &mut [Vec3<R>], x0: &[Vec3<R>], s: &SelfParams<R>) {
+    fn project_self_contacts(
+        &self,
+        x: &mut [Vec3<R>],
+        x0: &[Vec3<R>],
+        s: &SelfParams<R>,
+        corrections: &mut Vec<Vec3<R>>,
+    ) {
         let w = R::one() / self.params.mass;
         let nx = self.params.nx;
         let (pinned, hash) = (&self.pinned, &self.hash);
-        let corrections: Vec<Vec3<R>> = (0..x.len())
-            .into_par_iter()
-            .with_min_len(PARALLEL_CHUNK)
-            .map(|i| {
-                if pinned[i] {
-                    return Vec3::zero();
-                }
-                let (mut sum, mut count) = (Vec3::zero(), R::zero());
-                hash.for_each_near(x[i], s.buckets, |j| {
-                    if j != i && apart_at_rest(i, j, nx, s.spacing, s.thickness) {
-                        let w_j = if pinned[j] { R::zero() } else { w };
-                        if let Some(c) =
-                            self_contact_correction(x[i], x[j], x0[i], x0[j], w, w_j, s.thickness, s.friction)
-                        {
-                            sum += c;
-                            count = count + R::one();
-                        }
+        let positions: &[Vec3<R>] = x;
+        let correction_of = |i: usize| {
+            if pinned[i] {
+                return Vec3::zero();
+            }
+            let (mut sum, mut count) = (Vec3::zero(), R::zero());
+            hash.for_each_near(positions[i], s.buckets, |j| {
+                if j != i && apart_at_rest(i, j, nx, s.spacing, s.thickness) {
+                    let w_j = if pinned[j] { R::zero() } else { w };
+                    if let Some(c) = self_contact_correction(
+                        positions[i],
+                        positions[j],
+                        x0[i],
+                        x0[j],
+                        w,
+                        w_j,
+                        s.thickness,
+                        s.friction,
+                    ) {
+                        sum += c;
+                        count = count + R::one();
                     }
-                });
-                if count > R::zero() { sum * (R::one() / count) } else { Vec3::zero() }
-            })
-            .collect();
-        for (xi, c) in x.iter_mut().zip(corrections) {
+                }
+            });
+            if count > R::zero() { sum * (R::one() / count) } else { Vec3::zero() }
+        };
+        corrections.resize(x.len(), Vec3::zero());
+        (corrections.par_iter_mut().enumerate().with_min_len(PARALLEL_CHUNK))
+            .for_each(|(i, correction)| *correction = correction_of(i));
+        for (xi, &c) in x.iter_mut().zip(corrections.iter()) {
             *xi += c;
         }
     }
