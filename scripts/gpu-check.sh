@@ -14,8 +14,8 @@
 #   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
 #   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs (EFFECT_GRIDS,
 #                default 128,512), each collider kind of scenes/colliders.ron
-#                (COLLIDER_EFFECT_GRIDS, default 256), and self-collision on scenes/drape_folds.ron at
-#                64 substeps (SELF_EFFECT_GRIDS, default 256,1024)
+#                (COLLIDER_EFFECT_GRIDS, default 256), and self-collision on
+#                scenes/self_collision_bench.ron (SELF_EFFECT_GRIDS, default 256,1024)
 #   tuning       the bench at 512², 1024² and 2048² × 64 under each GPU tuning in TUNINGS (a list
 #                separated by ';' of `cloth bench` flags; default: the defaults, then block widths
 #                32 and 128, workgroups of 128 and 512, forward and alternating block orders)
@@ -87,9 +87,9 @@ if [[ " $checks " == *" effects "* ]]; then
   echo "== bench --effects on scenes/colliders.ron (a row for each collider kind)"
   "$CLOTH" bench --effects --scene scenes/colliders.ron --backends wgpu,vulkano --grids "${COLLIDER_EFFECT_GRIDS:-256}" \
     --frames 10 --csv "$OUT/effects-colliders.csv" 2>&1 | tee "$OUT/effects-colliders.txt"
-  echo "== bench --effects on scenes/drape_folds.ron at 64 substeps (the self-collision row)"
-  "$CLOTH" bench --effects --scene scenes/drape_folds.ron --backends wgpu,vulkano --grids "${SELF_EFFECT_GRIDS:-256,1024}" \
-    --substeps 64 --frames 10 --csv "$OUT/effects-self.csv" 2>&1 | tee "$OUT/effects-self.txt"
+  echo "== bench --effects on scenes/self_collision_bench.ron (the self-collision row)"
+  "$CLOTH" bench --effects --scene scenes/self_collision_bench.ron --backends wgpu,vulkano \
+    --grids "${SELF_EFFECT_GRIDS:-256,1024}" --frames 10 --csv "$OUT/effects-self.csv" 2>&1 | tee "$OUT/effects-self.txt"
 fi
 
 # Runs the bench with the binary $1 and the flags $3.., labelling its CSV rows with $2.

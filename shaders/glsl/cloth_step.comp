@@ -18,8 +18,12 @@
 //      this last stage's state sticks (its tangential motion over the substep is undone)
 layout(constant_id = 101) const uint STAGE = 0u;
 
-// The binding of the mesh colliders' distance fields, which layout.glsl declares.
+// The binding of the mesh colliders' distance fields, which layout.glsl declares, and the first
+// of self-collision's three, which self_collision.glsl declares (placeholders without
+// SelfCollision).
 #define DISTANCE_FIELDS_BINDING 13
+#define SELF_COLLISION_BINDING 14
+#define SELF_COLLISION_ACCESS readonly
 #include "layout.glsl"
 #include "forces.glsl"
 #include "self_collision.glsl"
@@ -49,8 +53,6 @@ layout(set = 0, binding = 9, std430) readonly buffer PackedVIn { vec2 packed_v_i
 layout(set = 0, binding = 10, std430) buffer PackedXvOut { vec4 packed_xv_out[]; };
 layout(set = 0, binding = 11, std430) buffer PackedVOut { vec2 packed_v_out[]; };
 layout(set = 0, binding = 12, std430) readonly buffer PinBits { uint pin_bits[]; };
-// Self-collision's spatial hash (self_hash.comp; a placeholder without SelfCollision).
-layout(set = 0, binding = 14, std430) readonly buffer SelfHashWords { uint self_hash_words[]; };
 // 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
 layout(constant_id = 108) const uint PACKED_IN = 0u;
 layout(constant_id = 109) const uint PACKED_OUT = 0u;
@@ -77,39 +79,45 @@ void state_in(uint index, out vec3 x, out vec3 v) {
 
 #include "grid.glsl"
 
-// The self-collision force on free vertex i at x moving at v, N: the repulsion of every vertex
-// the hash lists in the cells around x's within reach that is closer than the thickness and apart at rest
-// (cloth_core::reference's self_collision_force, cells in the same order).
-vec3 self_collision_force(uint i, vec3 x, vec3 v, float friction_dt) {
+// The repulsion of vertex j on free vertex i at x moving at v, N (its velocity read only for a
+// pair in contact).
+vec3 self_repulsion(uint j, vec3 x, vec3 v, float friction_dt) {
+    vec3 x_j = position_in(j);
+    if (!in_contact(x, x_j)) {
+        return vec3(0.0);
+    }
+    vec3 v_j;
+    state_in(j, x_j, v_j);
+    return repulsion_force(x, x_j, v, v_j, params.vertex_mass, friction_dt);
+}
+
+// The self-collision force on free vertex i at (vi, vj), at x moving at v, N: the repulsion of
+// its near partners row by row, then of its far partners, from its candidate list in increasing
+// index, or from the hash where the list overflowed (cloth_core::reference's
+// self_collision_force, in the same order).
+vec3 self_collision_force(uint i, uint vi, uint vj, vec3 x, vec3 v, float friction_dt) {
     vec3 force = vec3(0.0);
-    ivec3 base = hash_cell(x);
-    uint buckets = params.self_table.x;
-    uint block_sums = params.self_table.y;
-    vec3 below = hash_gaps(x, base);
-    for (int dz = -1; dz <= 1; dz++) {
-        for (int dy = -1; dy <= 1; dy++) {
-            for (int dx = -1; dx <= 1; dx++) {
-                if (!hash_cell_in_reach(below, ivec3(dx, dy, dz))) {
-                    continue;
-                }
-                ivec3 c = base + ivec3(dx, dy, dz);
-                uint b = hash_bucket(c);
-                uint start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
-                uint end = params.vertex_count;
-                if (b + 1u < buckets) {
-                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
-                }
-                for (uint e = start; e < end; e++) {
-                    uint at = params.self_table.z + 4u * e;
-                    ivec3 listed = ivec3(int(self_hash_words[at]), int(self_hash_words[at + 1u]),
-                                         int(self_hash_words[at + 2u]));
-                    uint j = self_hash_words[at + 3u];
-                    if (listed == c && j != i && apart_at_rest(i, j)) {
-                        vec3 x_j;
-                        vec3 v_j;
-                        state_in(j, x_j, v_j);
-                        force += repulsion_force(x, x_j, v, v_j, params.vertex_mass, friction_dt);
-                    }
+    for (int dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
+        for (int di = -NEAR_REACH; di <= NEAR_REACH; di++) {
+            uint j = near_partner(vi, vj, di, dj);
+            if (j != NO_VERTEX) {
+                force += self_repulsion(j, x, v, friction_dt);
+            }
+        }
+    }
+    uint count = candidate_count(i);
+    if (count <= LIST_CAPACITY) {
+        for (uint k = 0u; k < count; k++) {
+            force += self_repulsion(candidate(i, k), x, v, friction_dt);
+        }
+    } else {
+        FarSearch search = far_search(i, rebuild_position(i));
+        for (uint k = 0u; k < 27u; k++) {
+            FarCell cell = far_cell(search, k);
+            for (uint e = cell.first; e < cell.end; e++) {
+                uint j = far_candidate(search, cell, e);
+                if (j != NO_VERTEX) {
+                    force += self_repulsion(j, x, v, friction_dt);
                 }
             }
         }
@@ -187,7 +195,9 @@ layout(constant_id = 107) const uint BLOCK_WIDTH = 0u;
 // wrote last, which the L2 cache still holds.
 layout(constant_id = 110) const uint REVERSED_ORDER = 0u;
 
-void main() {
+// Advances the invocation's vertex; returns its displacement over the substep where this stage
+// ends one (w 1), zero otherwise (w 0: another stage, or no vertex).
+vec4 advance_vertex() {
     // The vertex's index and grid coordinates.
     uint i;
     uint vi;
@@ -206,14 +216,14 @@ void main() {
         vi = block.x * width + local_index % width;
         vj = block.y * (gl_WorkGroupSize.x / width) + local_index / width;
         if (vi >= params.grid_nx || vj >= params.grid_ny) {
-            return;
+            return vec4(0.0);
         }
         i = vj * params.grid_nx + vi;
     } else {
         // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
         i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
         if (i >= params.vertex_count) {
-            return;
+            return vec4(0.0);
         }
         vi = i % params.grid_nx;
         vj = i / params.grid_nx;
@@ -271,7 +281,7 @@ void main() {
             force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
         }
         if (EFFECT_SELF_COLLISION) {
-            force += self_collision_force(i, x, v, friction_dt);
+            force += self_collision_force(i, vi, vj, x, v, friction_dt);
         }
         // Against a moving collider, contact and friction act on the velocity relative to it.
         vec3 other_forces = force;
@@ -377,7 +387,7 @@ void main() {
     } else {
         velocities_out[i] = vec4(v_new, t_out);
         if (STAGE == 2u) {
-            return; // the second kick leaves the positions of the first stage as they are
+            return vec4(0.0); // the second kick leaves the positions of the first stage as they are
         }
         positions_out[i] = vec4(x_new, w_in);
     }
@@ -393,5 +403,23 @@ void main() {
                 atomicMax(max_penetration_bits, floatBitsToUint(deepest));
             }
         }
+    }
+    if (STAGE == 0u || STAGE == 1u) {
+        return vec4(x_new - x, 1.0);
+    }
+    if (STAGE == 6u) {
+        return vec4(x_new - rk4_scratch[4u * i].xyz, 1.0);
+    }
+    return vec4(0.0);
+}
+
+void main() {
+    if (EFFECT_SELF_COLLISION) {
+        clear_motion(gl_LocalInvocationIndex);
+    }
+    vec4 moved = advance_vertex();
+    if (EFFECT_SELF_COLLISION) {
+        // The box of the substep's displacements, which the next check adds to its bound.
+        record_motion(moved, gl_LocalInvocationIndex);
     }
 }

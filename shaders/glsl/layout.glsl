@@ -2,7 +2,7 @@
 // (checked by tests/tests/shader_layouts.rs), with the two bindings all kernels share
 // (0: parameters, 1: colliders) and the colliders' signed distances (colliders.glsl). Each kernel declares its other bindings.
 
-// cloth_gpu::layout::GpuSimParams (432 bytes, std140).
+// cloth_gpu::layout::GpuSimParams (448 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gravity;       // m/s² (xyz)
     vec4 stiffness;     // N/m by spring kind: structural, shear, bend
@@ -22,9 +22,22 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 pin_motion[16];
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
     vec4 self_contact;  // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
-    vec4 self_hash;     // the hash's cell side, m; speed limit, m/s; grid spacing along u, v, m
-    uvec4 self_table;   // buckets T; first block sum; first entry; blocks (cloth_gpu::layout::SelfHashTable)
+    vec4 self_hash;     // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
+    uvec4 self_table;   // buckets T; first block sum; first candidate count; blocks (cloth_gpu::layout::SelfHashTable)
+    vec4 self_lists;    // the margin less its rounding share, m; lookahead, m; substeps between checks
 } params;
+
+// cloth_gpu::layout::GpuSelfControl (128 bytes, std430): self-collision's check and the
+// substeps share it.
+struct SelfControl {
+    uvec4 full[5];          // workgroups of count, scan, sums, scatter, candidates for a rebuild
+    uint motion_high[4];    // highest order_key of the displacements since the check, xyz (atomic)
+    uint motion_low[4];     // highest inverted key (the lowest displacement), xyz (atomic)
+    float bound;            // the relative motion since the rebuild, at most, m
+    uint rebuilds;
+    uint checks;
+    uint overflows;         // lists that overflowed, over all rebuilds so far (atomic)
+};
 
 #ifndef PARAMS_ONLY
 // (A kernel that needs the parameters only defines PARAMS_ONLY first: self_hash.comp.)

@@ -1,11 +1,28 @@
 // Self-collision (cloth_core::self_collision, operation by operation): vertex pairs closer than
-// the thickness r repel, found through a spatial hash of cubic cells that self_hash.comp rebuilds
-// every few substeps. Included, after layout.glsl, by the kernels that evaluate or build it.
-// Parameters in params.self_contact, params.self_hash and params.self_table
+// the thickness r repel. Near partners (within NEAR_REACH grid steps) come from the grid, far
+// partners from each vertex's candidate list, which self_hash.comp rebuilds when the check finds
+// it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
+// that rebuild): the GLSL twin of shaders/wgsl/self_collision.wgsl. Included, after layout.glsl,
+// by the kernels that evaluate or build it, which define SELF_COLLISION_BINDING, the first of the
+// three bindings declared here (cloth_gpu::layout::SelfHashTable, GpuSelfControl), and
+// SELF_COLLISION_ACCESS (readonly, or empty for the kernels that write the table). Parameters in
+// params.self_contact, params.self_hash, params.self_table and params.self_lists
 // (cloth_gpu::layout::GpuSimParams).
+
+// The hash and the candidate lists; the entries (a listed position's bits and index) and each
+// vertex's position at the rebuild; the control.
+layout(set = 0, binding = SELF_COLLISION_BINDING, std430) SELF_COLLISION_ACCESS buffer SelfWords { uint self_words[]; };
+layout(set = 0, binding = SELF_COLLISION_BINDING + 1, std430) SELF_COLLISION_ACCESS buffer SelfEntries { uvec4 self_entries[]; };
+layout(set = 0, binding = SELF_COLLISION_BINDING + 2, std430) buffer SelfControlBuffer { SelfControl self_control; };
 
 // Self-collision's prefix sum scans this many buckets a workgroup (cloth_gpu::layout::HASH_SCAN_BLOCK).
 #define HASH_SCAN_BLOCK 256u
+// The most candidates a vertex keeps (cloth_core::self_collision::LIST_CAPACITY).
+#define LIST_CAPACITY 32u
+// Grid steps along i and j within which a pair are near partners (cloth_core::self_collision::NEAR_REACH).
+#define NEAR_REACH 2
+// No vertex: the end of a search.
+#define NO_VERTEX 0xffffffffu
 
 // The hash cell holding x: floor(x / h) per axis (cloth_core::self_collision::cell_of).
 ivec3 hash_cell(vec3 x) {
@@ -20,6 +37,14 @@ uint hash_bucket(ivec3 c) {
     return h & (params.self_table.x - 1u);
 }
 
+// The first entry of bucket b (its start within its block plus the block's sum).
+uint bucket_start(uint b) {
+    if (b >= params.self_table.x) {
+        return params.vertex_count;
+    }
+    return self_words[b] + self_words[params.self_table.y + b / HASH_SCAN_BLOCK];
+}
+
 // The distances from x to the low faces of its cell `base`, per axis, m (the high faces are h
 // minus these): how far the neighbouring cells below and above are (hash_gaps in
 // cloth_core::self_collision).
@@ -27,8 +52,8 @@ vec3 hash_gaps(vec3 x, ivec3 base) {
     return x - vec3(base) * params.self_hash.x;
 }
 
-// Whether the cell at offset d from x's comes nearer x than the cell side h: a vertex listed
-// farther than h from where x is now cannot be within the thickness of it (cell_in_reach).
+// Whether the cell at offset d from x's comes nearer x than the cell side h: every vertex within
+// h of x is in such a cell (cell_in_reach).
 bool hash_cell_in_reach(vec3 below, ivec3 d) {
     float h = params.self_hash.x;
     vec3 above = vec3(h) - below;
@@ -36,16 +61,100 @@ bool hash_cell_in_reach(vec3 below, ivec3 d) {
     return dot(e, e) < h * h;
 }
 
-// Whether vertices a and b are at least the thickness apart at rest, from their grid
-// coordinates (the rest-distance filter, apart_at_rest).
-bool apart_at_rest(uint a, uint b) {
-    uint nx = params.grid_nx;
-    float di = float(a % nx) - float(b % nx);
-    float dj = float(a / nx) - float(b / nx);
+// The rest-distance filter for a grid offset (di, dj): (di Δu)² + (dj Δv)² ≥ r² (apart_at_rest,
+// whose difference of coordinates is the offset).
+bool offset_apart_at_rest(float di, float dj) {
     float du = di * params.self_hash.z;
     float dv = dj * params.self_hash.w;
     float r = params.self_contact.x;
     return du * du + dv * dv >= r * r;
+}
+
+// The near partner of the vertex at (vi, vj) at grid offset (di, dj): the vertex there if it is
+// on the grid and apart at rest, NO_VERTEX otherwise (for_each_near_partner).
+uint near_partner(uint vi, uint vj, int di, int dj) {
+    // One off the grid on the low side wraps to a huge value: one comparison a coordinate.
+    uint ni = uint(int(vi) + di);
+    uint nj = uint(int(vj) + dj);
+    if (ni >= params.grid_nx || nj >= params.grid_ny || !offset_apart_at_rest(float(di), float(dj))) {
+        return NO_VERTEX;
+    }
+    return nj * params.grid_nx + ni;
+}
+
+// How many candidates vertex i listed at the last rebuild (more than LIST_CAPACITY: its list
+// overflowed, and it reads the hash instead).
+uint candidate_count(uint i) {
+    return self_words[params.self_table.z + i];
+}
+
+// Vertex i's k-th candidate, in increasing index (slot-major: cloth_gpu::layout::SelfHashTable).
+uint candidate(uint i, uint k) {
+    return self_words[params.self_table.z + params.vertex_count * (k + 1u) + i];
+}
+
+// Where vertex i was at the last rebuild, m (after the entries in self_entries).
+vec3 rebuild_position(uint i) {
+    return uintBitsToFloat(self_entries[params.vertex_count + i].xyz);
+}
+
+// A search of the hash for the far partners of vertex i within the window r + W of x0, its
+// position at the rebuild (far_partners, with the window as the hash's cell side): the 27 cells
+// around x0's (far_cell), each entry in reach (far_candidate). A search is two nested loops:
+//   for (uint k = 0u; k < 27u; k++) {
+//       FarCell cell = far_cell(search, k);
+//       for (uint e = cell.first; e < cell.end; e++) { uint j = far_candidate(search, cell, e); ... }
+//   }
+struct FarSearch {
+    uint i;
+    // i's column and row.
+    int ci;
+    int cj;
+    vec3 x0;
+    ivec3 base;
+};
+
+FarSearch far_search(uint i, vec3 x0) {
+    return FarSearch(i, int(i % params.grid_nx), int(i / params.grid_nx), x0, hash_cell(x0));
+}
+
+// The entries of the k-th of the 27 cells around the search's (by z, y, x offset): none where the
+// cell does not come within the window of x0 (every vertex within it is in a cell that does).
+struct FarCell {
+    ivec3 cell;
+    uint first;
+    uint end;
+};
+
+FarCell far_cell(FarSearch search, uint k) {
+    ivec3 offset = ivec3(int(k % 3u) - 1, int((k / 3u) % 3u) - 1, int(k / 9u) - 1);
+    ivec3 cell = search.base + offset;
+    if (!hash_cell_in_reach(hash_gaps(search.x0, search.base), offset)) {
+        return FarCell(cell, 0u, 0u);
+    }
+    uint b = hash_bucket(cell);
+    return FarCell(cell, bucket_start(b), bucket_start(b + 1u));
+}
+
+// The vertex entry e lists, if it is a far partner of the search's vertex within the window
+// (and listed in this cell: a bucket two cells share is read once for each), else NO_VERTEX.
+// The distance first, the cheapest test that rejects most.
+uint far_candidate(FarSearch search, FarCell cell, uint e) {
+    uvec4 listed = self_entries[e];
+    vec3 x_j = uintBitsToFloat(listed.xyz);
+    vec3 d = x_j - search.x0;
+    float window = params.self_hash.x;
+    if (dot(d, d) >= window * window) {
+        return NO_VERTEX;
+    }
+    uint j = listed.w;
+    int di = int(j % params.grid_nx) - search.ci;
+    int dj = int(j / params.grid_nx) - search.cj;
+    bool far = abs(di) > NEAR_REACH || abs(dj) > NEAR_REACH;
+    if (!far || hash_cell(x_j) != cell.cell || !offset_apart_at_rest(float(di), float(dj))) {
+        return NO_VERTEX;
+    }
+    return j;
 }
 
 // The force on vertex i from vertex j, N: repulsion k_s (r − d) and approach damping along
@@ -73,6 +182,14 @@ vec3 repulsion_force(vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, float mass, float d
     return force;
 }
 
+// Whether x_i and x_j are closer than the thickness (and apart): the pairs that act.
+bool in_contact(vec3 x_i, vec3 x_j) {
+    float r = params.self_contact.x;
+    vec3 delta = x_i - x_j;
+    float d2 = dot(delta, delta);
+    return d2 < r * r && d2 > 0.0;
+}
+
 // The speed limit's part on a substep's displacement from x_start: at most s_max Δt
 // (limit_speed).
 vec3 limit_step(vec3 x_start, vec3 x) {
@@ -93,4 +210,50 @@ vec3 limit_velocity(vec3 v) {
         return v * (max_speed / speed);
     }
     return v;
+}
+
+// The key of f whose unsigned order is the order of the numbers (order_key): the box of the
+// substep's displacements is kept with atomicMax on keys, and on inverted keys for its minimum.
+uint order_key(float f) {
+    uint bits = floatBitsToUint(f);
+    return (bits & 0x80000000u) != 0u ? ~bits : bits | 0x80000000u;
+}
+
+// The number whose order_key is `key` (from_order_key).
+float from_order_key(uint key) {
+    return uintBitsToFloat((key & 0x80000000u) != 0u ? key & 0x7fffffffu : ~key);
+}
+
+// The workgroup's box of displacements, as keys: x, y, z highest, then x, y, z lowest (inverted).
+shared uint motion_keys[6];
+
+// Before a kernel that records the motion (uniform control flow): the workgroup's box is empty.
+void clear_motion(uint local_index) {
+    if (local_index < 6u) {
+        motion_keys[local_index] = 0u;
+    }
+    barrier();
+}
+
+// Adds a vertex's displacement over the substep (moved.xyz, m; moved.w 0 where the invocation
+// has no vertex) to the workgroup's box, and the box to self_control's (uniform control flow).
+void record_motion(vec4 moved, uint local_index) {
+    if (moved.w != 0.0) {
+        for (uint k = 0u; k < 3u; k++) {
+            uint key = order_key(moved[k]);
+            atomicMax(motion_keys[k], key);
+            atomicMax(motion_keys[k + 3u], ~key);
+        }
+    }
+    barrier();
+    if (local_index < 6u) {
+        uint key = motion_keys[local_index];
+        if (key != 0u) {
+            if (local_index < 3u) {
+                atomicMax(self_control.motion_high[local_index], key);
+            } else {
+                atomicMax(self_control.motion_low[local_index - 3u], key);
+            }
+        }
+    }
 }

@@ -19,8 +19,12 @@
 // Which pass this pipeline runs (see above).
 layout(constant_id = 101) const uint XPBD_PASS = 0u;
 
-// The binding of the mesh colliders' distance fields, which layout.glsl declares.
+// The binding of the mesh colliders' distance fields, which layout.glsl declares, and the first
+// of self-collision's three, which self_collision.glsl declares (placeholders without
+// SelfCollision).
 #define DISTANCE_FIELDS_BINDING 11
+#define SELF_COLLISION_BINDING 13
+#define SELF_COLLISION_ACCESS readonly
 #include "layout.glsl"
 #include "forces.glsl"
 #include "self_collision.glsl"
@@ -54,10 +58,9 @@ vec3 position_in(uint index) {
 
 #include "grid.glsl"
 
-// Self-collision's spatial hash (self_hash.comp), and each vertex's averaged self-contact
-// correction of the current iteration, m (placeholders without SelfCollision).
-layout(set = 0, binding = 12, std430) readonly buffer SelfHashWords { uint self_hash_words[]; };
-layout(set = 0, binding = 13, std430) buffer SelfCorrections { vec4 self_corrections[]; };
+// Each vertex's averaged self-contact correction of the current iteration, m (a placeholder
+// without SelfCollision).
+layout(set = 0, binding = 12, std430) buffer SelfCorrections { vec4 self_corrections[]; };
 
 // XPBD's correction of free vertex i (inverse mass w_i) for its contact with vertex j (w_j, 0
 // when pinned), m, in xyz, and w = 1 where they touch (cloth_core::self_collision::
@@ -84,9 +87,19 @@ vec4 self_contact_correction(vec3 x_i, vec3 x_j, vec3 x0_i, vec3 x0_j, float w_i
     return vec4(correction, 1.0);
 }
 
-// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the cells around it
-// within reach, from the positions the springs left, averaged (cloth_core::reference's
-// project_self_contacts, cells in the same order).
+// Free vertex i's correction for its contact with vertex j (self_contact_correction, from the
+// positions the springs left and the substep's start), with w 1, or zero where they do not touch.
+vec4 self_contact_with(uint j, vec3 x, vec3 x0, float w) {
+    vec4 q = positions_out[j];
+    if (!in_contact(x, q.xyz)) {
+        return vec4(0.0);
+    }
+    return self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
+}
+
+// Pass 4: free vertex i's self-contacts with its near partners row by row, then its far partners
+// (from its candidate list, or from the hash where the list overflowed), averaged
+// (cloth_core::reference's project_self_contacts, in the same order).
 void self_contacts(uint i) {
     vec4 p = positions_out[i];
     if (p.w <= 0.0) {
@@ -97,32 +110,29 @@ void self_contacts(uint i) {
     vec3 x0 = positions_in[i].xyz;
     float w = 1.0 / params.vertex_mass;
     vec4 sum = vec4(0.0);
-    ivec3 base = hash_cell(x);
-    uint buckets = params.self_table.x;
-    uint block_sums = params.self_table.y;
-    vec3 below = hash_gaps(x, base);
-    for (int dz = -1; dz <= 1; dz++) {
-        for (int dy = -1; dy <= 1; dy++) {
-            for (int dx = -1; dx <= 1; dx++) {
-                if (!hash_cell_in_reach(below, ivec3(dx, dy, dz))) {
-                    continue;
-                }
-                ivec3 c = base + ivec3(dx, dy, dz);
-                uint b = hash_bucket(c);
-                uint start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
-                uint end = params.vertex_count;
-                if (b + 1u < buckets) {
-                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
-                }
-                for (uint e = start; e < end; e++) {
-                    uint at = params.self_table.z + 4u * e;
-                    ivec3 listed = ivec3(int(self_hash_words[at]), int(self_hash_words[at + 1u]),
-                                         int(self_hash_words[at + 2u]));
-                    uint j = self_hash_words[at + 3u];
-                    if (listed == c && j != i && apart_at_rest(i, j)) {
-                        vec4 q = positions_out[j];
-                        sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
-                    }
+    uint vi = i % params.grid_nx;
+    uint vj = i / params.grid_nx;
+    for (int dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
+        for (int di = -NEAR_REACH; di <= NEAR_REACH; di++) {
+            uint j = near_partner(vi, vj, di, dj);
+            if (j != NO_VERTEX) {
+                sum += self_contact_with(j, x, x0, w);
+            }
+        }
+    }
+    uint count = candidate_count(i);
+    if (count <= LIST_CAPACITY) {
+        for (uint k = 0u; k < count; k++) {
+            sum += self_contact_with(candidate(i, k), x, x0, w);
+        }
+    } else {
+        FarSearch search = far_search(i, rebuild_position(i));
+        for (uint k = 0u; k < 27u; k++) {
+            FarCell cell = far_cell(search, k);
+            for (uint e = cell.first; e < cell.end; e++) {
+                uint j = far_candidate(search, cell, e);
+                if (j != NO_VERTEX) {
+                    sum += self_contact_with(j, x, x0, w);
                 }
             }
         }
@@ -323,7 +333,8 @@ void project_colliders(uint i) {
     normal_corrections[i] = correction;
 }
 
-void finish(uint i) {
+// Pass 3; returns the vertex's displacement over the substep (w 1).
+vec4 finish(uint i) {
     vec4 p = positions_out[i];
     float t = velocities_in[i].w;
     float t_end = t + params.substep_dt;
@@ -364,17 +375,20 @@ void finish(uint i) {
             atomicMax(max_penetration_bits, floatBitsToUint(deepest));
         }
     }
+    return vec4(x - positions_in[i].xyz, 1.0);
 }
 
-void main() {
+// Runs the pipeline's pass for the invocation; returns the vertex's displacement over the
+// substep in the finishing pass (w 1), zero otherwise.
+vec4 run_pass() {
     // 2D dispatch: more than maxComputeWorkGroupCount[0] workgroups spill into y.
     uint t = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
     if (XPBD_PASS == 1u) {
         project_color(t);
-        return;
+        return vec4(0.0);
     }
     if (t >= params.vertex_count) {
-        return;
+        return vec4(0.0);
     }
     if (XPBD_PASS == 0u) {
         predict(t);
@@ -387,6 +401,20 @@ void main() {
             self_contacts(t);
         }
     } else {
-        finish(t);
+        return finish(t);
+    }
+    return vec4(0.0);
+}
+
+void main() {
+    // (The conditions written out, not kept in a variable: a constant condition compiles the
+    // branch out.)
+    if (EFFECT_SELF_COLLISION && XPBD_PASS == 3u) {
+        clear_motion(gl_LocalInvocationIndex);
+    }
+    vec4 moved = run_pass();
+    if (EFFECT_SELF_COLLISION && XPBD_PASS == 3u) {
+        // The box of the substep's displacements, which the next check adds to its bound.
+        record_motion(moved, gl_LocalInvocationIndex);
     }
 }

@@ -41,8 +41,11 @@ override STAGE: u32 = 0u;
 @group(0) @binding(12) var<storage, read> pin_bits: array<u32>;
 // The mesh colliders' distance fields (colliders.wgsl), m.
 @group(0) @binding(13) var<storage, read> distance_fields: array<f32>;
-// Self-collision's spatial hash (self_hash.wgsl; a placeholder without SelfCollision).
-@group(0) @binding(14) var<storage, read> self_hash_words: array<u32>;
+// Self-collision's hash and candidate lists, its entries and its control (self_hash.wgsl;
+// placeholders without SelfCollision).
+@group(0) @binding(14) var<storage, read> self_words: array<u32>;
+@group(0) @binding(15) var<storage, read> self_entries: array<vec4<u32>>;
+@group(0) @binding(16) var<storage, read_write> self_control: SelfControl;
 // 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
 override PACKED_IN: u32 = 0u;
 override PACKED_OUT: u32 = 0u;
@@ -132,39 +135,43 @@ fn add_stencil_springs(force: ptr<function, vec3<f32>>, i: i32, j: i32, index: u
     }
 }
 
-// The self-collision force on free vertex i at x moving at v, N: the repulsion of every vertex
-// the hash lists in the cells around x's within reach that is closer than the thickness and apart
-// at rest (cloth_core::reference's self_collision_force, cells in the same order).
-fn self_collision_force(i: u32, x: vec3<f32>, v: vec3<f32>, friction_dt: f32) -> vec3<f32> {
+// The repulsion of vertex j on free vertex i at x moving at v, N (its velocity read only for a
+// pair in contact).
+fn self_repulsion(j: u32, x: vec3<f32>, v: vec3<f32>, friction_dt: f32) -> vec3<f32> {
+    let x_j = position_in(j);
+    if (!in_contact(x, x_j)) {
+        return vec3<f32>(0.0);
+    }
+    return repulsion_force(x, x_j, v, state_in(j).v, params.vertex_mass, friction_dt);
+}
+
+// The self-collision force on free vertex i at (vi, vj), at x moving at v, N: the repulsion of
+// its near partners row by row, then of its far partners, from its candidate list in increasing
+// index, or from the hash where the list overflowed (cloth_core::reference's
+// self_collision_force, in the same order).
+fn self_collision_force(i: u32, vi: u32, vj: u32, x: vec3<f32>, v: vec3<f32>, friction_dt: f32) -> vec3<f32> {
     var force = vec3<f32>(0.0);
-    let base = hash_cell(x);
-    let buckets = params.self_table.x;
-    let block_sums = params.self_table.y;
-    let gaps = hash_gaps(x, base);
-    for (var dz = -1; dz <= 1; dz++) {
-        for (var dy = -1; dy <= 1; dy++) {
-            for (var dx = -1; dx <= 1; dx++) {
-                if (!hash_cell_in_reach(gaps, dx, dy, dz)) {
-                    continue;
-                }
-                let c = base + vec3<i32>(dx, dy, dz);
-                let b = hash_bucket(c);
-                let start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
-                var end = params.vertex_count;
-                if (b + 1u < buckets) {
-                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
-                }
-                for (var e = start; e < end; e++) {
-                    let at = params.self_table.z + 4u * e;
-                    let listed = vec3<i32>(bitcast<i32>(self_hash_words[at]), bitcast<i32>(self_hash_words[at + 1u]),
-                                           bitcast<i32>(self_hash_words[at + 2u]));
-                    let j = self_hash_words[at + 3u];
-                    if (all(listed == c) & (j != i)) {
-                        if (apart_at_rest(i, j)) {
-                            let other = state_in(j);
-                            force += repulsion_force(x, other.x, v, other.v, params.vertex_mass, friction_dt);
-                        }
-                    }
+    for (var dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
+        for (var di = -NEAR_REACH; di <= NEAR_REACH; di++) {
+            let j = near_partner(vi, vj, di, dj);
+            if (j != NO_VERTEX) {
+                force += self_repulsion(j, x, v, friction_dt);
+            }
+        }
+    }
+    let count = candidate_count(i);
+    if (count <= LIST_CAPACITY) {
+        for (var k = 0u; k < count; k++) {
+            force += self_repulsion(candidate(i, k), x, v, friction_dt);
+        }
+    } else {
+        let search = far_search(i, rebuild_position(i));
+        for (var k = 0u; k < 27u; k++) {
+            let cell = far_cell(search, k);
+            for (var e = cell.first; e < cell.end; e++) {
+                let j = far_candidate(search, cell, e);
+                if (j != NO_VERTEX) {
+                    force += self_repulsion(j, x, v, friction_dt);
                 }
             }
         }
@@ -185,6 +192,19 @@ override REVERSED_ORDER: u32 = 0u;
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
            @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
+    if (EFFECT_SELF_COLLISION) {
+        clear_motion(local);
+    }
+    let moved = advance_vertex(id, groups, group, local);
+    if (EFFECT_SELF_COLLISION) {
+        // The box of the substep's displacements, which the next check adds to its bound.
+        record_motion(moved, local);
+    }
+}
+
+// Advances the invocation's vertex; returns its displacement over the substep where this stage
+// ends one (w 1), zero otherwise (w 0: another stage, or no vertex).
+fn advance_vertex(id: vec3<u32>, groups: vec3<u32>, group: vec3<u32>, local: u32) -> vec4<f32> {
     // The vertex's index and grid coordinates.
     var i: u32;
     var vi: u32;
@@ -201,14 +221,14 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         vi = block.x * width + local % width;
         vj = block.y * (WORKGROUP_SIZE / width) + local / width;
         if ((vi >= params.grid_nx) | (vj >= params.grid_ny)) {
-            return;
+            return vec4<f32>(0.0);
         }
         i = vj * params.grid_nx + vi;
     } else {
         // 2D dispatch: more than 65535 workgroups spill into y.
         i = id.y * groups.x * WORKGROUP_SIZE + id.x;
         if (i >= params.vertex_count) {
-            return;
+            return vec4<f32>(0.0);
         }
         vi = i % params.grid_nx;
         vj = i / params.grid_nx;
@@ -271,7 +291,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             force += wind_force(grid_normal(i), v, wind_velocity(t), params.wind.w);
         }
         if (EFFECT_SELF_COLLISION) {
-            force += self_collision_force(i, x, v, friction_dt);
+            force += self_collision_force(i, vi, vj, x, v, friction_dt);
         }
         // Against a moving collider, contact and friction act on the velocity relative to it.
         let other_forces = force;
@@ -378,7 +398,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     } else {
         velocities_out[i] = vec4<f32>(v_new, t_out);
         if (STAGE == 2u) {
-            return; // the second kick leaves the positions of the first stage as they are
+            return vec4<f32>(0.0); // the second kick leaves the positions of the first stage as they are
         }
         positions_out[i] = vec4<f32>(x_new, w_in);
     }
@@ -395,4 +415,11 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             }
         }
     }
+    if (STAGE == 0u || STAGE == 1u) {
+        return vec4<f32>(x_new - x, 1.0);
+    }
+    if (STAGE == 6u) {
+        return vec4<f32>(x_new - rk4_scratch[4u * i].xyz, 1.0);
+    }
+    return vec4<f32>(0.0);
 }

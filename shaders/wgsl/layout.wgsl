@@ -2,7 +2,7 @@
 // declared once here and prepended to every WGSL module that uses them (the compute kernels and
 // the inspector's render.wgsl). A test reflects every such module against the Rust types.
 
-// cloth_gpu::layout::GpuSimParams (432 bytes).
+// cloth_gpu::layout::GpuSimParams (448 bytes).
 struct SimParams {
     gravity: vec4<f32>,      // m/s² (xyz)
     stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
@@ -22,8 +22,9 @@ struct SimParams {
     pin_motion: array<vec4<f32>, 16>,
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
     self_contact: vec4<f32>, // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
-    self_hash: vec4<f32>,    // the hash's cell side, m; speed limit, m/s; grid spacing along u, v, m
-    self_table: vec4<u32>,   // buckets T; first block sum; first entry; blocks (cloth_gpu::layout::SelfHashTable)
+    self_hash: vec4<f32>,    // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
+    self_table: vec4<u32>,   // buckets T; first block sum; first candidate count; blocks (cloth_gpu::layout::SelfHashTable)
+    self_lists: vec4<f32>,   // the margin less its rounding share, m; lookahead, m; substeps between checks
 }
 
 // The colliders' uniform block holds this many (cloth_core::colliders::MAX_COLLIDERS; params
@@ -69,4 +70,16 @@ struct ColorRange {
     count: u32,
     first_iteration: u32,    // 1: the multipliers start from 0
     pad: u32,
+}
+
+// cloth_gpu::layout::GpuSelfControl (128 bytes): self-collision's check and the substeps share
+// it.
+struct SelfControl {
+    full: array<vec4<u32>, 5>,              // workgroups of count, scan, sums, scatter, candidates for a rebuild
+    motion_high: array<atomic<u32>, 4>,     // highest order_key of the displacements since the check, xyz
+    motion_low: array<atomic<u32>, 4>,      // highest inverted key (the lowest displacement), xyz
+    bound: f32,                             // the relative motion since the rebuild, at most, m
+    rebuilds: u32,
+    checks: u32,
+    overflows: atomic<u32>,                 // lists that overflowed, over all rebuilds so far
 }

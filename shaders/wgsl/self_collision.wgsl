@@ -1,11 +1,20 @@
 // Self-collision (cloth_core::self_collision, operation by operation): vertex pairs closer than
-// the thickness r repel, found through a spatial hash of cubic cells that the kernels of
-// self_hash.wgsl rebuild every few substeps. Prepended, after common.wgsl, to the kernels that
-// evaluate or build it. Parameters in params.self_contact, params.self_hash and
-// params.self_table (cloth_gpu::layout::GpuSimParams).
+// the thickness r repel. Near partners (within NEAR_REACH grid steps) come from the grid, far
+// partners from each vertex's candidate list, which self_hash.wgsl rebuilds when the check finds
+// it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
+// that rebuild). Prepended, after common.wgsl, to the kernels that evaluate or build it, each of
+// which declares self_words, self_entries and self_control (cloth_gpu::layout::SelfHashTable,
+// GpuSelfControl). Parameters in params.self_contact, params.self_hash, params.self_table and
+// params.self_lists (cloth_gpu::layout::GpuSimParams).
 
 // Self-collision's prefix sum scans this many buckets a workgroup (cloth_gpu::layout::HASH_SCAN_BLOCK).
 const HASH_SCAN_BLOCK: u32 = 256u;
+// The most candidates a vertex keeps (cloth_core::self_collision::LIST_CAPACITY).
+const LIST_CAPACITY: u32 = 32u;
+// Grid steps along i and j within which a pair are near partners (cloth_core::self_collision::NEAR_REACH).
+const NEAR_REACH: i32 = 2;
+// No vertex: the end of a search.
+const NO_VERTEX: u32 = 0xffffffffu;
 
 // The hash cell holding x: floor(x / h) per axis (cloth_core::self_collision::cell_of).
 fn hash_cell(x: vec3<f32>) -> vec3<i32> {
@@ -18,6 +27,14 @@ fn hash_cell(x: vec3<f32>) -> vec3<i32> {
 fn hash_bucket(c: vec3<i32>) -> u32 {
     let h = (u32(c.x) * 73856093u) ^ (u32(c.y) * 19349663u) ^ (u32(c.z) * 83492791u);
     return h & (params.self_table.x - 1u);
+}
+
+// The first entry of bucket b (its start within its block plus the block's sum).
+fn bucket_start(b: u32) -> u32 {
+    if (b >= params.self_table.x) {
+        return params.vertex_count;
+    }
+    return self_words[b] + self_words[params.self_table.y + b / HASH_SCAN_BLOCK];
 }
 
 // The distances from x to the low and the high faces of its cell `base`, per axis, m: how far
@@ -33,11 +50,9 @@ fn hash_gaps(x: vec3<f32>, base: vec3<i32>) -> HashGaps {
     return HashGaps(below, vec3<f32>(h) - below);
 }
 
-// Whether the cell at offset (dx, dy, dz) from x's comes nearer x than the cell side h: a vertex
-// listed farther than h from where x is now cannot be within the thickness of it
-// (cell_in_reach).
-fn hash_cell_in_reach(gaps: HashGaps, dx: i32, dy: i32, dz: i32) -> bool {
-    let d = vec3<i32>(dx, dy, dz);
+// Whether the cell at offset d (each −1, 0 or 1) from x's comes nearer x than the cell side h:
+// every vertex within h of x is in such a cell (cell_in_reach).
+fn hash_cell_in_reach(gaps: HashGaps, d: vec3<i32>) -> bool {
     let low = select(vec3<f32>(0.0), gaps.below, d < vec3<i32>(0));
     let high = select(vec3<f32>(0.0), gaps.above, d > vec3<i32>(0));
     let e = low + high;
@@ -45,16 +60,100 @@ fn hash_cell_in_reach(gaps: HashGaps, dx: i32, dy: i32, dz: i32) -> bool {
     return dot(e, e) < h * h;
 }
 
-// Whether vertices a and b are at least the thickness apart at rest, from their grid
-// coordinates (the rest-distance filter, apart_at_rest).
-fn apart_at_rest(a: u32, b: u32) -> bool {
-    let nx = params.grid_nx;
-    let di = f32(a % nx) - f32(b % nx);
-    let dj = f32(a / nx) - f32(b / nx);
+// The rest-distance filter for a grid offset (di, dj): (di Δu)² + (dj Δv)² ≥ r² (apart_at_rest,
+// whose difference of coordinates is the offset).
+fn offset_apart_at_rest(di: f32, dj: f32) -> bool {
     let du = di * params.self_hash.z;
     let dv = dj * params.self_hash.w;
     let r = params.self_contact.x;
     return du * du + dv * dv >= r * r;
+}
+
+// The near partner of vertex i at (vi, vj) at grid offset (di, dj): the vertex there if it is on
+// the grid and apart at rest, NO_VERTEX otherwise (for_each_near_partner).
+fn near_partner(vi: u32, vj: u32, di: i32, dj: i32) -> u32 {
+    // One off the grid on the low side wraps to a huge value: one comparison a coordinate.
+    let ni = u32(i32(vi) + di);
+    let nj = u32(i32(vj) + dj);
+    if ((ni >= params.grid_nx) | (nj >= params.grid_ny) | !offset_apart_at_rest(f32(di), f32(dj))) {
+        return NO_VERTEX;
+    }
+    return nj * params.grid_nx + ni;
+}
+
+// How many candidates vertex i listed at the last rebuild (more than LIST_CAPACITY: its list
+// overflowed, and it reads the hash instead).
+fn candidate_count(i: u32) -> u32 {
+    return self_words[params.self_table.z + i];
+}
+
+// Vertex i's k-th candidate, in increasing index (slot-major: cloth_gpu::layout::SelfHashTable).
+fn candidate(i: u32, k: u32) -> u32 {
+    return self_words[params.self_table.z + params.vertex_count * (k + 1u) + i];
+}
+
+// Where vertex i was at the last rebuild, m (after the entries in self_entries).
+fn rebuild_position(i: u32) -> vec3<f32> {
+    return bitcast<vec3<f32>>(self_entries[params.vertex_count + i].xyz);
+}
+
+// A search of the hash for the far partners of vertex i within the window r + W of x0, its
+// position at the rebuild (far_partners, with the window as the hash's cell side): the 27 cells
+// around x0's (far_cell), each entry in reach (far_candidate). A search is two nested loops:
+//   for (var k = 0u; k < 27u; k++) {
+//       let cell = far_cell(search, k);
+//       for (var e = cell.first; e < cell.end; e++) { let j = far_candidate(search, cell, e); ... }
+//   }
+struct FarSearch {
+    i: u32,
+    // i's column and row.
+    ci: i32,
+    cj: i32,
+    x0: vec3<f32>,
+    base: vec3<i32>,
+}
+
+fn far_search(i: u32, x0: vec3<f32>) -> FarSearch {
+    return FarSearch(i, i32(i % params.grid_nx), i32(i / params.grid_nx), x0, hash_cell(x0));
+}
+
+// The entries of the k-th of the 27 cells around the search's (by z, y, x offset): none where the
+// cell does not come within the window of x0 (every vertex within it is in a cell that does).
+struct FarCell {
+    cell: vec3<i32>,
+    first: u32,
+    end: u32,
+}
+
+fn far_cell(search: FarSearch, k: u32) -> FarCell {
+    let offset = vec3<i32>(i32(k % 3u) - 1, i32((k / 3u) % 3u) - 1, i32(k / 9u) - 1);
+    let cell = search.base + offset;
+    if (!hash_cell_in_reach(hash_gaps(search.x0, search.base), offset)) {
+        return FarCell(cell, 0u, 0u);
+    }
+    let b = hash_bucket(cell);
+    return FarCell(cell, bucket_start(b), bucket_start(b + 1u));
+}
+
+// The vertex entry e lists, if it is a far partner of the search's vertex within the window
+// (and listed in this cell: a bucket two cells share is read once for each), else NO_VERTEX.
+// The distance first, the cheapest test that rejects most.
+fn far_candidate(search: FarSearch, cell: FarCell, e: u32) -> u32 {
+    let listed = self_entries[e];
+    let x_j = bitcast<vec3<f32>>(listed.xyz);
+    let d = x_j - search.x0;
+    let window = params.self_hash.x;
+    if (dot(d, d) >= window * window) {
+        return NO_VERTEX;
+    }
+    let j = listed.w;
+    let di = i32(j % params.grid_nx) - search.ci;
+    let dj = i32(j / params.grid_nx) - search.cj;
+    let far = (abs(di) > NEAR_REACH) | (abs(dj) > NEAR_REACH);
+    if (!(far & all(hash_cell(x_j) == cell.cell) & offset_apart_at_rest(f32(di), f32(dj)))) {
+        return NO_VERTEX;
+    }
+    return j;
 }
 
 // The force on vertex i from vertex j, N: repulsion k_s (r − d) and approach damping along
@@ -83,6 +182,14 @@ fn repulsion_force(x_i: vec3<f32>, x_j: vec3<f32>, v_i: vec3<f32>, v_j: vec3<f32
     return force;
 }
 
+// Whether x_i and x_j are closer than the thickness (and apart): the pairs that act.
+fn in_contact(x_i: vec3<f32>, x_j: vec3<f32>) -> bool {
+    let r = params.self_contact.x;
+    let delta = x_i - x_j;
+    let d2 = dot(delta, delta);
+    return (d2 < r * r) & (d2 > 0.0);
+}
+
 // The speed limit's part on a substep's displacement from x_start: at most s_max Δt
 // (limit_speed).
 fn limit_step(x_start: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
@@ -103,4 +210,50 @@ fn limit_velocity(v: vec3<f32>) -> vec3<f32> {
         return v * (max_speed / speed);
     }
     return v;
+}
+
+// The key of f whose unsigned order is the order of the numbers (order_key): the box of the
+// substep's displacements is kept with atomicMax on keys, and on inverted keys for its minimum.
+fn order_key(f: f32) -> u32 {
+    let bits = bitcast<u32>(f);
+    return select(bits | 0x80000000u, ~bits, (bits & 0x80000000u) != 0u);
+}
+
+// The number whose order_key is `key` (from_order_key).
+fn from_order_key(key: u32) -> f32 {
+    return bitcast<f32>(select(~key, key & 0x7fffffffu, (key & 0x80000000u) != 0u));
+}
+
+// The workgroup's box of displacements, as keys: x, y, z highest, then x, y, z lowest (inverted).
+var<workgroup> motion_keys: array<atomic<u32>, 6>;
+
+// Before a kernel that records the motion (uniform control flow): the workgroup's box is empty.
+fn clear_motion(local: u32) {
+    if (local < 6u) {
+        atomicStore(&motion_keys[local], 0u);
+    }
+    workgroupBarrier();
+}
+
+// Adds a vertex's displacement over the substep (moved.xyz, m; moved.w 0 where the invocation
+// has no vertex) to the workgroup's box, and the box to self_control's (uniform control flow).
+fn record_motion(moved: vec4<f32>, local: u32) {
+    if (moved.w != 0.0) {
+        for (var k = 0u; k < 3u; k++) {
+            let key = order_key(moved[k]);
+            atomicMax(&motion_keys[k], key);
+            atomicMax(&motion_keys[k + 3u], ~key);
+        }
+    }
+    workgroupBarrier();
+    if (local < 6u) {
+        let key = atomicLoad(&motion_keys[local]);
+        if (key != 0u) {
+            if (local < 3u) {
+                atomicMax(&self_control.motion_high[local], key);
+            } else {
+                atomicMax(&self_control.motion_low[local - 3u], key);
+            }
+        }
+    }
 }

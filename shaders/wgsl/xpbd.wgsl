@@ -43,10 +43,13 @@ fn position_in(index: u32) -> vec3<f32> {
 @group(0) @binding(10) var<uniform> color: ColorRange;
 // The mesh colliders' distance fields (colliders.wgsl), m.
 @group(0) @binding(11) var<storage, read> distance_fields: array<f32>;
-// Self-collision's spatial hash (self_hash.wgsl), and each vertex's averaged self-contact
-// correction of the current iteration, m (placeholders without SelfCollision).
-@group(0) @binding(12) var<storage, read> self_hash_words: array<u32>;
-@group(0) @binding(13) var<storage, read_write> self_corrections: array<vec4<f32>>;
+// Each vertex's averaged self-contact correction of the current iteration, m; self-collision's
+// hash and candidate lists, its entries and its control (self_hash.wgsl; placeholders without
+// SelfCollision).
+@group(0) @binding(12) var<storage, read_write> self_corrections: array<vec4<f32>>;
+@group(0) @binding(13) var<storage, read> self_words: array<u32>;
+@group(0) @binding(14) var<storage, read> self_entries: array<vec4<u32>>;
+@group(0) @binding(15) var<storage, read_write> self_control: SelfControl;
 
 // XPBD's correction of free vertex i (inverse mass w_i) for its contact with vertex j (w_j, 0
 // when pinned), m, and whether they touch (cloth_core::self_collision::self_contact_correction):
@@ -74,9 +77,19 @@ fn self_contact_correction(x_i: vec3<f32>, x_j: vec3<f32>, x0_i: vec3<f32>, x0_j
     return vec4<f32>(correction, 1.0);
 }
 
-// Pass 4: free vertex i's self-contacts with the vertices the hash lists in the cells around it
-// within reach, from the positions the springs left, averaged (cloth_core::reference's
-// project_self_contacts, cells in the same order).
+// Free vertex i's correction for its contact with vertex j (self_contact_correction, from the
+// positions the springs left and the substep's start), with w 1, or zero where they do not touch.
+fn self_contact_with(j: u32, x: vec3<f32>, x0: vec3<f32>, w: f32) -> vec4<f32> {
+    let q = positions_out[j];
+    if (!in_contact(x, q.xyz)) {
+        return vec4<f32>(0.0);
+    }
+    return self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
+}
+
+// Pass 4: free vertex i's self-contacts with its near partners row by row, then its far partners
+// (from its candidate list, or from the hash where the list overflowed), averaged
+// (cloth_core::reference's project_self_contacts, in the same order).
 fn self_contacts(i: u32) {
     let p = positions_out[i];
     if (p.w <= 0.0) {
@@ -87,34 +100,29 @@ fn self_contacts(i: u32) {
     let x0 = positions_in[i].xyz;
     let w = 1.0 / params.vertex_mass;
     var sum = vec4<f32>(0.0);
-    let base = hash_cell(x);
-    let buckets = params.self_table.x;
-    let block_sums = params.self_table.y;
-    let gaps = hash_gaps(x, base);
-    for (var dz = -1; dz <= 1; dz++) {
-        for (var dy = -1; dy <= 1; dy++) {
-            for (var dx = -1; dx <= 1; dx++) {
-                if (!hash_cell_in_reach(gaps, dx, dy, dz)) {
-                    continue;
-                }
-                let c = base + vec3<i32>(dx, dy, dz);
-                let b = hash_bucket(c);
-                let start = self_hash_words[b] + self_hash_words[block_sums + b / HASH_SCAN_BLOCK];
-                var end = params.vertex_count;
-                if (b + 1u < buckets) {
-                    end = self_hash_words[b + 1u] + self_hash_words[block_sums + (b + 1u) / HASH_SCAN_BLOCK];
-                }
-                for (var e = start; e < end; e++) {
-                    let at = params.self_table.z + 4u * e;
-                    let listed = vec3<i32>(bitcast<i32>(self_hash_words[at]), bitcast<i32>(self_hash_words[at + 1u]),
-                                           bitcast<i32>(self_hash_words[at + 2u]));
-                    let j = self_hash_words[at + 3u];
-                    if (all(listed == c) & (j != i)) {
-                        if (apart_at_rest(i, j)) {
-                            let q = positions_out[j];
-                            sum += self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
-                        }
-                    }
+    let vi = i % params.grid_nx;
+    let vj = i / params.grid_nx;
+    for (var dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
+        for (var di = -NEAR_REACH; di <= NEAR_REACH; di++) {
+            let j = near_partner(vi, vj, di, dj);
+            if (j != NO_VERTEX) {
+                sum += self_contact_with(j, x, x0, w);
+            }
+        }
+    }
+    let count = candidate_count(i);
+    if (count <= LIST_CAPACITY) {
+        for (var k = 0u; k < count; k++) {
+            sum += self_contact_with(candidate(i, k), x, x0, w);
+        }
+    } else {
+        let search = far_search(i, rebuild_position(i));
+        for (var k = 0u; k < 27u; k++) {
+            let cell = far_cell(search, k);
+            for (var e = cell.first; e < cell.end; e++) {
+                let j = far_candidate(search, cell, e);
+                if (j != NO_VERTEX) {
+                    sum += self_contact_with(j, x, x0, w);
                 }
             }
         }
@@ -333,7 +341,8 @@ fn project_colliders(i: u32) {
     normal_corrections[i] = correction;
 }
 
-fn finish(i: u32) {
+// Pass 3; returns the vertex's displacement over the substep (w 1).
+fn finish(i: u32) -> vec4<f32> {
     let p = positions_out[i];
     let t = velocities_in[i].w;
     let t_end = t + params.substep_dt;
@@ -374,18 +383,35 @@ fn finish(i: u32) {
             atomicMax(&max_penetration_bits, bitcast<u32>(deepest));
         }
     }
+    return vec4<f32>(x - positions_in[i].xyz, 1.0);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
-fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+        @builtin(local_invocation_index) local: u32) {
+    // (The conditions written out, not kept in a variable: a constant condition compiles the
+    // branch out.)
+    if (EFFECT_SELF_COLLISION & (XPBD_PASS == 3u)) {
+        clear_motion(local);
+    }
+    let moved = run_pass(id, groups);
+    if (EFFECT_SELF_COLLISION & (XPBD_PASS == 3u)) {
+        // The box of the substep's displacements, which the next check adds to its bound.
+        record_motion(moved, local);
+    }
+}
+
+// Runs the pipeline's pass for the invocation; returns the vertex's displacement over the
+// substep in the finishing pass (w 1), zero otherwise.
+fn run_pass(id: vec3<u32>, groups: vec3<u32>) -> vec4<f32> {
     // 2D dispatch: more than 65535 workgroups spill into y.
     let t = id.y * groups.x * WORKGROUP_SIZE + id.x;
     if (XPBD_PASS == 1u) {
         project_color(t);
-        return;
+        return vec4<f32>(0.0);
     }
     if (t >= params.vertex_count) {
-        return;
+        return vec4<f32>(0.0);
     }
     switch XPBD_PASS {
         case 0u: { predict(t); }
@@ -399,6 +425,7 @@ fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
                 self_contacts(t);
             }
         }
-        default: { finish(t); }
+        default: { return finish(t); }
     }
+    return vec4<f32>(0.0);
 }

@@ -27,7 +27,14 @@ fn work_of(effect: Effect) -> &'static [&'static str] {
         Effect::AirDrag => &["air_drag_force"],
         Effect::Wind => &["wind_force", "wind_velocity", "grid_normal"],
         Effect::MovingPins | Effect::MovingColliders => &["motion_displacement", "motion_velocity"],
-        Effect::SelfCollision => &["self_collision_force", "repulsion_force", "limit_step", "limit_velocity"],
+        Effect::SelfCollision => &[
+            "self_collision_force",
+            "repulsion_force",
+            "far_candidate",
+            "limit_step",
+            "limit_velocity",
+            "record_motion",
+        ],
     }
 }
 
@@ -366,7 +373,9 @@ fn present_effects_have_reachable_work() {
             "motion_displacement",
             "self_collision_force",
             "repulsion_force",
+            "far_candidate",
             "limit_step",
+            "record_motion",
         ] {
             assert!(euler.contains(f), "{language:?} Euler with every effect: `{f}` should be reachable: {euler:?}");
         }

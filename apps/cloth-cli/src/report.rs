@@ -25,6 +25,18 @@ pub struct SelfIntersections {
     pub max: Option<usize>,
 }
 
+/// How a GPU backend's self-collision candidate lists fared over the run
+/// ([`cloth_core::self_collision`]).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct CandidateLists {
+    /// Checks of the lists.
+    pub checks: u64,
+    /// Rebuilds the checks ordered.
+    pub rebuilds: u64,
+    /// Lists that did not fit, over all rebuilds (their vertices read the hash until the next).
+    pub overflowed_lists: u64,
+}
+
 /// What a run measured.
 pub struct Measured<'a> {
     pub state: &'a ClothState,
@@ -60,6 +72,8 @@ pub struct Report {
     pub nan_count: usize,
     /// Edge–triangle crossings of the cloth through itself, at the end and at most in a frame.
     pub self_intersections: SelfIntersections,
+    /// With `SelfCollision` on a GPU backend: its candidate lists' checks and rebuilds.
+    pub self_collision_lists: Option<CandidateLists>,
     pub final_kinetic_energy_j: f64,
     pub final_total_energy_j: f64,
     pub final_centroid_m: [f64; 3],
@@ -107,6 +121,11 @@ impl Report {
             max_penetration_fraction_of_spacing: diagnostics.max_penetration_m / du.min(dv),
             nan_count: state.non_finite_count(),
             self_intersections,
+            self_collision_lists: diagnostics.candidate_lists.map(|l| CandidateLists {
+                checks: l.checks,
+                rebuilds: l.rebuilds,
+                overflowed_lists: l.overflowed_lists,
+            }),
             final_kinetic_energy_j: energy.kinetic,
             final_total_energy_j: energy.total(),
             final_centroid_m: state.centroid(),
@@ -161,6 +180,14 @@ impl Report {
                 at_end.map_or(String::new(), |n| format!("; {n} crossings at the end"))
             ),
         }?;
+        if let Some(l) = self.self_collision_lists {
+            out!(
+                "lists       self-collision's candidate lists checked {} times, rebuilt {} times; {} lists overflowed",
+                l.checks,
+                l.rebuilds,
+                l.overflowed_lists
+            )?;
+        }
         out!(
             "state       centroid ({:.4}, {:.4}, {:.4}) m; kinetic energy {:.3e} J; NaN vertices {}",
             c[0],

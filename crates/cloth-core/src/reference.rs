@@ -21,7 +21,8 @@ use crate::quantities::SceneQuantities;
 use crate::real::{Real, Vec3};
 use crate::scene::Scene;
 use crate::self_collision::{
-    CellHash, SelfCollisionQuantities, apart_at_rest, limit_speed, repulsion_force, self_contact_correction,
+    CellHash, MARGIN_ROUNDING, SelfCollisionQuantities, far_partners, for_each_near_partner, limit_speed,
+    repulsion_force, self_contact_correction,
 };
 use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
 
@@ -120,10 +121,8 @@ struct SelfParams<R> {
     max_speed: R,
     /// Grid spacing along u and v, m (the rest-distance filter).
     spacing: [R; 2],
-    /// The hash: cell side (m), buckets, substeps between rebuilds.
-    cell: f64,
+    /// Buckets of the hash of the far partners (whose cell side is the thickness).
     buckets: u32,
-    rebuild_interval: u64,
 }
 
 impl<R: Real> SelfParams<R> {
@@ -139,10 +138,14 @@ impl<R: Real> SelfParams<R> {
             friction: R::of(q.friction),
             max_speed: R::of(q.max_speed),
             spacing: [R::of(q.spacing[0]), R::of(q.spacing[1])],
-            cell: q.cell,
             buckets: q.buckets,
-            rebuild_interval: q.rebuild_interval.max(1) as u64,
         })
+    }
+
+    /// The hash of the far partners at `positions`: cells of side `r` (and a rounding share
+    /// more), so it lists every vertex closer than `r` to a point among the 27 cells around it.
+    fn hash(&self, positions: &[Vec3<R>]) -> CellHash {
+        CellHash::build(positions, self.thickness.to_f64_lossy() * (1.0 + MARGIN_ROUNDING), self.buckets)
     }
 }
 
@@ -212,10 +215,6 @@ pub struct ReferenceSimulator<R: Real> {
     clock: R,
     max_penetration: R,
     substeps_run: u64,
-    /// The spatial hash of self-collision (empty without it), and whether the state changed
-    /// since it was built (a written state rebuilds it at the next substep).
-    hash: CellHash,
-    hash_stale: bool,
     /// Scratch reused from substep to substep, so a substep allocates nothing for
     /// self-collision: the positions at the substep's start (the speed limit's reference) and
     /// XPBD's averaged self-contact corrections.
@@ -272,8 +271,6 @@ impl<R: Real> ReferenceSimulator<R> {
             clock: R::zero(),
             max_penetration: R::zero(),
             substeps_run: 0,
-            hash: CellHash::default(),
-            hash_stale: true,
             substep_start: Vec::new(),
             self_corrections: Vec::new(),
             scene,
@@ -288,14 +285,15 @@ impl<R: Real> ReferenceSimulator<R> {
         self.scene.effects.contains(Effect::MovingColliders)
     }
 
-    /// The read-only data of a force evaluation at state `(x, v)` and time `time`.
-    /// The per-vertex functions are the variant compiled for the scene's effects.
+    /// The read-only data of a force evaluation at state `(x, v)` and time `time` (with
+    /// `SelfCollision`, the hash of `x`'s far partners). The per-vertex functions are the variant
+    /// compiled for the scene's effects.
     fn context<'a>(&'a self, x: &'a [Vec3<R>], v: &'a [Vec3<R>], time: R) -> StepContext<'a, R> {
         let (force, predict) = specialised!(variant_bits(self.scene.effects), E => (
             variant_force_and_stick::<R, E> as ForceFn<R>,
             variant_predicted_velocity::<R, E> as PredictFn<R>,
         ));
-        let hash = self.params.self_collision.map(|_| &self.hash);
+        let hash = self.params.self_collision.map(|s| s.hash(x));
         StepContext { params: &self.params, force, predict, first: &self.first, ends: &self.ends, x, v, time, hash }
     }
 
@@ -311,12 +309,6 @@ impl<R: Real> ReferenceSimulator<R> {
 
     /// Advances one substep of `Δt = scene.substep_dt()` with the scene's integrator.
     pub fn substep(&mut self) {
-        if let Some(s) = &self.params.self_collision
-            && (self.hash_stale || self.substeps_run.is_multiple_of(s.rebuild_interval))
-        {
-            self.hash = CellHash::build(&self.positions, s.cell, s.buckets);
-            self.hash_stale = false;
-        }
         // The speed limit applies at the substep's end (velocity Verlet applies it itself, its
         // drift before its second kick).
         let limited = self.params.self_collision.is_some() && self.scene.integrator != Integrator::VelocityVerlet;
@@ -584,8 +576,9 @@ impl<R: Real> ReferenceSimulator<R> {
     }
 
     /// XPBD's self-contacts, one Jacobi sweep: every free vertex's corrections
-    /// ([`self_contact_correction`]) for the vertices the hash lists near it, computed from `x`
-    /// and averaged, then applied together (the GPU's one invocation per vertex).
+    /// ([`self_contact_correction`]) for its near partners, then its far partners (the
+    /// forces' order), computed from `x` and averaged, then applied together (the GPU's one
+    /// invocation per vertex).
     fn project_self_contacts(
         &self,
         x: &mut [Vec3<R>],
@@ -594,32 +587,26 @@ impl<R: Real> ReferenceSimulator<R> {
         corrections: &mut Vec<Vec3<R>>,
     ) {
         let w = R::one() / self.params.mass;
-        let nx = self.params.nx;
-        let (pinned, hash) = (&self.pinned, &self.hash);
+        let (nx, ny) = (self.params.nx, self.params.ny);
+        let pinned = &self.pinned;
         let positions: &[Vec3<R>] = x;
+        let hash = s.hash(positions);
         let correction_of = |i: usize| {
             if pinned[i] {
                 return Vec3::zero();
             }
             let (mut sum, mut count) = (Vec3::zero(), R::zero());
-            hash.for_each_near(positions[i], s.buckets, |j| {
-                if j != i && apart_at_rest(i, j, nx, s.spacing, s.thickness) {
-                    let w_j = if pinned[j] { R::zero() } else { w };
-                    if let Some(c) = self_contact_correction(
-                        positions[i],
-                        positions[j],
-                        x0[i],
-                        x0[j],
-                        w,
-                        w_j,
-                        s.thickness,
-                        s.friction,
-                    ) {
-                        sum += c;
-                        count = count + R::one();
-                    }
+            let mut correct = |j: usize| {
+                let w_j = if pinned[j] { R::zero() } else { w };
+                if let Some(c) =
+                    self_contact_correction(positions[i], positions[j], x0[i], x0[j], w, w_j, s.thickness, s.friction)
+                {
+                    sum += c;
+                    count = count + R::one();
                 }
-            });
+            };
+            for_each_near_partner(i, nx, ny, s.spacing, s.thickness, &mut correct);
+            far_partners(&hash, positions, i, nx, s.spacing, s.thickness, s.thickness).into_iter().for_each(correct);
             if count > R::zero() { sum * (R::one() / count) } else { Vec3::zero() }
         };
         corrections.resize(x.len(), Vec3::zero());
@@ -688,8 +675,8 @@ struct StepContext<'a, R: Real> {
     v: &'a [Vec3<R>],
     /// Time of the state `(x, v)`, s.
     time: R,
-    /// The spatial hash, with `SelfCollision`.
-    hash: Option<&'a CellHash>,
+    /// The hash of the far partners of `x`, with `SelfCollision`.
+    hash: Option<CellHash>,
 }
 
 /// The effects of variant `E` as constants (bit `k` of `E` is `VARIANT_EFFECTS[k]`).
@@ -720,29 +707,29 @@ impl<R: Real> StepContext<'_, R> {
         wind_force(normal, v, wind, p.wind_coefficient_area)
     }
 
-    /// The self-collision force on free vertex `i`, N: the repulsion of every vertex the hash
-    /// lists near it that is closer than the thickness and apart at rest
-    /// ([`crate::self_collision`]), summed in the hash's order.
+    /// The self-collision force on free vertex `i`, N: the repulsion of every near partner, row
+    /// by row, then of every far partner, in increasing index ([`crate::self_collision`]; the
+    /// GPU's order).
     fn self_collision_force(&self, hash: &CellHash, s: &SelfParams<R>, i: usize, friction_dt: R) -> Vec3<R> {
         let p = self.params;
         let (x, v) = (self.x[i], self.v[i]);
         let mut force = Vec3::zero();
-        hash.for_each_near(x, s.buckets, |j| {
-            if j != i && apart_at_rest(i, j, p.nx, s.spacing, s.thickness) {
-                force += repulsion_force(
-                    x,
-                    self.x[j],
-                    v,
-                    self.v[j],
-                    s.thickness,
-                    s.stiffness,
-                    s.damping,
-                    s.friction,
-                    p.mass,
-                    friction_dt,
-                );
-            }
-        });
+        let mut repel = |j: usize| {
+            force += repulsion_force(
+                x,
+                self.x[j],
+                v,
+                self.v[j],
+                s.thickness,
+                s.stiffness,
+                s.damping,
+                s.friction,
+                p.mass,
+                friction_dt,
+            );
+        };
+        for_each_near_partner(i, p.nx, p.ny, s.spacing, s.thickness, &mut repel);
+        far_partners(hash, self.x, i, p.nx, s.spacing, s.thickness, s.thickness).into_iter().for_each(repel);
         force
     }
 
@@ -808,7 +795,7 @@ fn variant_force_and_stick<R: Real, const E: u16>(
     if Variant::<E>::WIND {
         force += ctx.wind_force(i, v);
     }
-    if let (Some(hash), Some(s)) = (ctx.hash, &p.self_collision) {
+    if let (Some(hash), Some(s)) = (&ctx.hash, &p.self_collision) {
         force += ctx.self_collision_force(hash, s, i, friction_dt);
     }
     // Contact and friction: R_o, the resultant of the other forces, is the force so far.
@@ -878,8 +865,6 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
         scene.validate()?;
         self.params = Params::new(scene);
         self.scene = scene.clone();
-        // The thickness may have changed the hash's cells.
-        self.hash_stale = true;
         Ok(())
     }
 
@@ -898,7 +883,6 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
     fn write_state(&mut self, state: &ClothState) -> Result<(), SimError> {
         check_state_size(self.positions.len(), state)?;
         self.positions = state.positions.iter().map(|p| Vec3::from_f32(*p)).collect();
-        self.hash_stale = true;
         self.velocities = state.velocities.iter().map(|v| Vec3::from_f32(*v)).collect();
         self.time_s = state.time_s;
         self.clock = R::of(state.time_s as f32 as f64);
@@ -906,7 +890,11 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
-        Ok(Diagnostics { max_penetration_m: self.max_penetration.to_f64_lossy(), substeps_run: self.substeps_run })
+        Ok(Diagnostics {
+            max_penetration_m: self.max_penetration.to_f64_lossy(),
+            substeps_run: self.substeps_run,
+            candidate_lists: None,
+        })
     }
 }
 

@@ -28,26 +28,53 @@
 //! removes only pairs within `1.5 Δs` at rest (neighbours and diagonals), which share a triangle.
 //!
 //! **The speed limit.** While the effect is on, no free vertex moves more than `s_max Δt` in a
-//! substep, nor moves faster than `s_max` ([`limit_speed`]). Two things rest on it: a vertex
-//! cannot jump across a layer of thickness `r` in one substep (validation asks
-//! `2 s_max Δt ≤ r`), and the spatial hash stays correct between rebuilds.
+//! substep, nor moves faster than `s_max` ([`limit_speed`]): a vertex cannot jump across a layer
+//! of thickness `r` in one substep (validation asks `2 s_max Δt ≤ r`).
 //!
-//! **The spatial hash.** The vertices are sorted into cubic cells of side
-//! `h = r + s_max (K + 1) Δt`, rebuilt at the start of every `K`-th substep
-//! (`rebuild_interval`). A vertex is listed in the cell of where it was at the rebuild; it
-//! queries the 27 cells around where it is now (those that come nearer than `h`). Until the next rebuild a vertex moves at most
-//! `s_max K Δt` at the ends of substeps (the speed limit), and the extra substep of margin covers
-//! the stage states of velocity Verlet and RK4 inside a substep (whose stage velocities stay near
-//! the limited ones). So a pair closer than `r` now was closer than `h` between the query's
-//! position and the listed one, and the listed vertex is in one of the 27 cells: the margin
-//! `s_max (K + 1) Δt` keeps the hash correct between rebuilds, by construction.
-//! The cells are hashed into a table of `T` buckets (a power of two at least the vertex count)
-//! and filled by counting sort: counts per bucket, an exclusive prefix sum, a scatter. Each entry
-//! keeps its cell's coordinates, so a bucket that two cells share is read once per cell and a
-//! vertex found only in its own cell. The GPU builds the same table ([`CellHash`]).
+//! **Finding the pairs: near and far partners.** The pairs split in two by where they are on the
+//! grid, and each vertex sums its repulsions in this order:
+//!
+//! * *near partners*, within [`NEAR_REACH`] grid steps along both `i` and `j` (a 5 × 5 stencil)
+//!   and apart at rest ([`for_each_near_partner`]): read from the grid like the springs, every
+//!   substep, row by row;
+//! * *far partners*, every other vertex closer than `r` and apart at rest
+//!   ([`far_partners`]), in increasing index. A flat or gently curved cloth has none: a vertex
+//!   three or more spacings away along the grid is that far away in space unless the cloth
+//!   folds or is squeezed to less than `r / 3Δs` of its length.
+//!
+//! The CPU reference finds the far partners with a spatial hash of cell side `r` built from the
+//! state it evaluates ([`CellHash`]). The GPU keeps a list of *candidates* instead, rebuilt only
+//! when the cloth has moved enough to make it stale:
+//!
+//! * at a rebuild, from the positions `X⁰` of that moment, vertex `i`'s candidates are the far
+//!   vertices within the *window* `r + W` of it (`W` the `margin`), found with a hash of cell side
+//!   `r + W` and kept sorted (at most [`LIST_CAPACITY`]; a vertex with more reads the hash
+//!   itself, every substep, until the next rebuild);
+//! * a pair that is not a candidate was at least `r + W` apart at the rebuild, so it stays at
+//!   least `r` apart as long as no two vertices have moved by more than `W` relative to each
+//!   other since: `|x_i − x_j| ≥ |X⁰_i − X⁰_j| − |Δ_i − Δ_j|` with `Δ = x − X⁰`;
+//! * each substep bounds that relative motion without a read-back: its kernel takes the box
+//!   (per axis, minimum and maximum over the cloth) of every vertex's displacement `δ` over the
+//!   substep, and `|δ_i − δ_j|` is at most the box's diagonal `e`. Summed over the substeps since
+//!   the rebuild, `B = Σ e` bounds `|Δ_i − Δ_j|` for every pair ([`MotionBound`]);
+//! * every [`SelfCollisionQuantities::check_interval`] substeps `C`, before the substep, one
+//!   invocation compares `B` plus the most the cloth can still move before the next check,
+//!   `L = 2 s_max Δt (C − 1 + σ)`, with `W`, and orders a rebuild when they meet
+//!   ([`rebuild_due`]; σ = 0 for semi-implicit Euler, whose forces are evaluated at the
+//!   substep's start, and 1 for the integrators that evaluate later stage states or iterate, whose
+//!   states within a substep are taken to stay within one substep's reach of its start). The
+//!   rebuild's dispatches are indirect: their sizes are written on the GPU, zero when no
+//!   rebuild is due.
+//!
+//! `C` is the longest interval (at most [`MAX_CHECK_INTERVAL`]) whose lookahead `L` takes at
+//! most half the margin, so a cloth that moves as a whole, falling or swinging, is rebuilt rarely;
+//! a cloth whose parts move against each other is rebuilt as often as that motion uses up `W`.
+//! The hash of a rebuild is a table of `T` buckets (a power of two at least the vertex count),
+//! filled by counting sort: counts per bucket, an exclusive prefix sum, a scatter.
 
 use serde::{Deserialize, Serialize};
 
+use crate::integrator::Integrator;
 use crate::real::{Real, Vec3};
 use crate::scene::Scene;
 
@@ -57,7 +84,21 @@ use crate::scene::Scene;
 /// force.
 pub const CONTACTS_PER_VERTEX: f64 = 8.0;
 
-/// How thick the cloth is for self-collision.
+/// Grid steps along `i` and along `j` within which a pair counts as near partners
+/// ([`for_each_near_partner`]), every other pair as far.
+pub const NEAR_REACH: usize = 2;
+
+/// The most candidates the GPU keeps for one vertex; a vertex with more reads the hash instead.
+pub const LIST_CAPACITY: u32 = 32;
+
+/// The longest interval between two checks of the candidate lists, substeps.
+pub const MAX_CHECK_INTERVAL: u32 = 8;
+
+/// The share of the margin kept back for rounding: the lists count as stale once the bound on
+/// the relative motion reaches `(1 − MARGIN_ROUNDING) W`.
+pub const MARGIN_ROUNDING: f64 = 1.0 / 1024.0;
+
+/// A length that scales with the grid, or a fixed one.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Thickness {
     /// A multiple of the grid spacing (the larger of `Δu`, `Δv`): keeps its meaning when
@@ -65,6 +106,16 @@ pub enum Thickness {
     Spacings(f64),
     /// A length, m.
     Meters(f64),
+}
+
+impl Thickness {
+    /// The length in m on a grid whose larger spacing is `spacing`, m.
+    pub fn meters(self, spacing: f64) -> f64 {
+        match self {
+            Thickness::Spacings(f) => f * spacing,
+            Thickness::Meters(m) => m,
+        }
+    }
 }
 
 /// The parameters of the `SelfCollision` effect (the scene's `self_collision` field).
@@ -81,8 +132,10 @@ pub struct SelfCollisionSpec {
     pub friction: f64,
     /// The speed limit `s_max` of a free vertex while the effect is on, m/s. Default 6.
     pub max_speed: f64,
-    /// Substeps between rebuilds of the spatial hash, `K` (at least 1). Default 4.
-    pub rebuild_interval: u32,
+    /// The margin `W` of the GPU's candidate lists beyond the thickness: how far two vertices may
+    /// move relative to each other before the lists are rebuilt. Larger margins rebuild less
+    /// often and keep longer lists. Default `Spacings(1.0)`.
+    pub margin: Thickness,
 }
 
 impl Default for SelfCollisionSpec {
@@ -93,7 +146,7 @@ impl Default for SelfCollisionSpec {
             damping: 0.05,
             friction: 0.3,
             max_speed: 6.0,
-            rebuild_interval: 4,
+            margin: Thickness::Spacings(1.0),
         }
     }
 }
@@ -111,11 +164,16 @@ pub struct SelfCollisionQuantities {
     pub friction: f64,
     /// `s_max`, m/s.
     pub max_speed: f64,
-    /// `K`, substeps.
-    pub rebuild_interval: u32,
-    /// The hash's cell side `h = r + s_max (K + 1) Δt`, m.
-    pub cell: f64,
-    /// Buckets of the hash table, `T` (a power of two, at least the vertex count).
+    /// The candidate lists' margin `W`, m.
+    pub margin: f64,
+    /// The candidate window `r + W`, m: the cell side of the GPU's hash.
+    pub window: f64,
+    /// Substeps between two checks of the candidate lists, `C` (1 to [`MAX_CHECK_INTERVAL`]).
+    pub check_interval: u32,
+    /// The most two vertices can move relative to each other between a check and the last state
+    /// evaluated before the next, `L = 2 s_max Δt (C − 1 + σ)`, m.
+    pub lookahead: f64,
+    /// Buckets of a hash table, `T` (a power of two, at least the vertex count).
     pub buckets: u32,
     /// The grid spacing along u and v, m (the rest distance of `(Δi, Δj)` is
     /// `√((Δi Δu)² + (Δj Δv)²)`).
@@ -127,19 +185,24 @@ impl SelfCollisionQuantities {
     pub fn of(scene: &Scene) -> Self {
         let s = &scene.self_collision;
         let spacing = scene.cloth.spacing();
-        let thickness = match s.thickness {
-            Thickness::Spacings(f) => f * spacing[0].max(spacing[1]),
-            Thickness::Meters(m) => m,
-        };
-        let margin = s.max_speed * (s.rebuild_interval + 1) as f64 * scene.substep_dt();
+        let larger = spacing[0].max(spacing[1]);
+        let (thickness, margin) = (s.thickness.meters(larger), s.margin.meters(larger));
+        // σ: the states within a substep that the forces or constraints see, in substeps beyond
+        // its start.
+        let stages = if scene.integrator == Integrator::SemiImplicitEuler { 0.0 } else { 1.0 };
+        let relative_step = 2.0 * s.max_speed * scene.substep_dt();
+        let lookahead = |c: u32| relative_step * ((c - 1) as f64 + stages);
+        let check_interval = (1..=MAX_CHECK_INTERVAL).rev().find(|&c| lookahead(c) <= margin / 2.0).unwrap_or(1);
         Self {
             thickness,
             stiffness: s.stiffness,
             damping: s.damping,
             friction: s.friction,
             max_speed: s.max_speed,
-            rebuild_interval: s.rebuild_interval,
-            cell: thickness + margin,
+            margin,
+            window: thickness + margin,
+            check_interval,
+            lookahead: lookahead(check_interval),
             buckets: (scene.vertex_count().max(1) as u32).next_power_of_two(),
             spacing,
         }
@@ -162,6 +225,117 @@ pub fn apart_at_rest<R: Real>(a: usize, b: usize, nx: usize, spacing: [R; 2], th
     let dj = R::of((a / nx) as f64) - R::of((b / nx) as f64);
     let (du, dv) = (di * spacing[0], dj * spacing[1]);
     du * du + dv * dv >= thickness * thickness
+}
+
+/// Whether vertices `a` and `b` of an `nx`-wide grid are within [`NEAR_REACH`] steps of each
+/// other along both grid directions (near partners, when also apart at rest).
+pub fn within_near_reach(a: usize, b: usize, nx: usize) -> bool {
+    (a % nx).abs_diff(b % nx) <= NEAR_REACH && (a / nx).abs_diff(b / nx) <= NEAR_REACH
+}
+
+/// Calls `visit(j)` for each near partner `j` of vertex `i` of an `nx × ny` grid: the vertices
+/// within [`NEAR_REACH`] steps along both directions that are apart at rest, row by row
+/// (`Δj` from −2 to 2, and within a row `Δi` from −2 to 2), as the kernels visit them.
+pub fn for_each_near_partner<R: Real>(
+    i: usize,
+    nx: usize,
+    ny: usize,
+    spacing: [R; 2],
+    thickness: R,
+    mut visit: impl FnMut(usize),
+) {
+    let reach = NEAR_REACH as isize;
+    let (ci, cj) = ((i % nx) as isize, (i / nx) as isize);
+    for dj in -reach..=reach {
+        for di in -reach..=reach {
+            let (ni, nj) = (ci + di, cj + dj);
+            if ni < 0 || nj < 0 || ni >= nx as isize || nj >= ny as isize {
+                continue;
+            }
+            let j = nj as usize * nx + ni as usize;
+            if apart_at_rest(i, j, nx, spacing, thickness) {
+                visit(j);
+            }
+        }
+    }
+}
+
+/// The far partners of vertex `i` within `window` of it (m), in increasing index: every vertex
+/// of `positions` beyond [`NEAR_REACH`] along the grid, apart at rest and with
+/// `|x_i − x_j|² < window²`, found through `hash` (whose cell side must be at least `window`).
+/// With `window = r` these are the far vertices that repel `i`; with `window = r + W` at the
+/// positions of a rebuild, the GPU's candidates.
+#[allow(clippy::too_many_arguments)]
+pub fn far_partners<R: Real>(
+    hash: &CellHash,
+    positions: &[Vec3<R>],
+    i: usize,
+    nx: usize,
+    spacing: [R; 2],
+    thickness: R,
+    window: R,
+) -> Vec<usize> {
+    let x = positions[i];
+    let mut found = Vec::new();
+    hash.for_each_near(x, |j| {
+        let d = positions[j] - x;
+        if !within_near_reach(i, j, nx) && apart_at_rest(i, j, nx, spacing, thickness) && d.dot(d) < window * window {
+            found.push(j);
+        }
+    });
+    found.sort_unstable();
+    found
+}
+
+/// How a GPU backend's candidate lists fared (`Diagnostics::candidate_lists`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CandidateListStats {
+    /// Checks run.
+    pub checks: u64,
+    /// Rebuilds the checks ordered.
+    pub rebuilds: u64,
+    /// Lists that did not fit [`LIST_CAPACITY`], over all rebuilds (a vertex's at each rebuild;
+    /// its vertex reads the hash instead until the next).
+    pub overflowed_lists: u64,
+}
+
+/// The bound `B` on how far any two vertices have moved relative to each other since the
+/// candidate lists were built (see the module documentation), as the GPU keeps it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MotionBound {
+    /// `B`, m.
+    pub bound: f64,
+}
+
+impl MotionBound {
+    /// Adds `substeps` substeps whose displacements `δ` all lie in the box `low..=high` (per
+    /// axis, m): each adds at most the box's diagonal to `|Δ_i − Δ_j|`.
+    pub fn add(&mut self, low: [f64; 3], high: [f64; 3], substeps: u32) {
+        let e = [0, 1, 2].map(|k| high[k] - low[k]);
+        self.bound += substeps as f64 * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+    }
+}
+
+/// Whether the candidate lists must be rebuilt before the next substep: when the motion since
+/// the rebuild, `bound`, plus the most the cloth can still move before the next check,
+/// `lookahead`, may exceed the margin (less its rounding share, [`MARGIN_ROUNDING`]). A bound that
+/// is not a number (a state that is not) always rebuilds.
+pub fn rebuild_due(bound: f64, lookahead: f64, margin: f64) -> bool {
+    let within = (bound + lookahead).partial_cmp(&(margin * (1.0 - MARGIN_ROUNDING)));
+    !matches!(within, Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal))
+}
+
+/// The key of `f` whose unsigned order is the order of the numbers (negative numbers' bits
+/// inverted, the others' sign bit set): the kernels keep the box of the displacements with
+/// `atomicMax` on keys, and on inverted keys for the minimum. Key 0 means nothing recorded.
+pub fn order_key(f: f32) -> u32 {
+    let bits = f.to_bits();
+    if bits & 0x8000_0000 != 0 { !bits } else { bits | 0x8000_0000 }
+}
+
+/// The number whose [`order_key`] is `key`.
+pub fn from_order_key(key: u32) -> f32 {
+    f32::from_bits(if key & 0x8000_0000 != 0 { key & 0x7fff_ffff } else { !key })
 }
 
 /// The force on vertex `i` at `x_i` moving at `v_i` from vertex `j` at `x_j`, `v_j`, N (the rule
@@ -286,12 +460,14 @@ pub fn bucket_of(c: [i32; 3], buckets: u32) -> u32 {
     h & (buckets - 1)
 }
 
-/// The spatial hash of the cloth's vertices: the table the GPU builds, filled on the CPU by the
-/// same counting sort (entries of a bucket in vertex order).
+/// A spatial hash of the cloth's vertices: the table the GPU builds at a rebuild, filled here by
+/// the same counting sort (entries of a bucket in vertex order).
 #[derive(Clone, Debug, Default)]
 pub struct CellHash {
     /// Cell side `h`, m.
     pub cell: f64,
+    /// Buckets `T`, a power of two.
+    pub buckets: u32,
     /// `start[b]..start[b + 1]` are the entries of bucket `b` (`T + 1` values).
     pub start: Vec<u32>,
     /// Each entry's vertex and the cell it was listed in.
@@ -318,13 +494,13 @@ impl CellHash {
             entries[fill[b] as usize] = (i as u32, c);
             fill[b] += 1;
         }
-        Self { cell, start, entries }
+        Self { cell, buckets, start, entries }
     }
 
     /// Calls `visit(j)` for every vertex listed in one of the 27 cells around `x`'s cell that
-    /// comes nearer `x` than the cell side ([`cell_in_reach`]), each once, in the order the
-    /// kernels visit them (cells by `z`, `y`, `x` offset, entries in order).
-    pub fn for_each_near<R: Real>(&self, x: Vec3<R>, buckets: u32, mut visit: impl FnMut(usize)) {
+    /// comes nearer `x` than the cell side ([`cell_in_reach`]), each once: cells by `z`, `y`, `x`
+    /// offset, entries in order. Every vertex within the cell side of `x` is among them.
+    pub fn for_each_near<R: Real>(&self, x: Vec3<R>, mut visit: impl FnMut(usize)) {
         let h = R::of(self.cell);
         let base = cell_of(x, h);
         let [cx, cy, cz] = base;
@@ -336,7 +512,7 @@ impl CellHash {
                         continue;
                     }
                     let c = [cx + dx, cy + dy, cz + dz];
-                    let b = bucket_of(c, buckets) as usize;
+                    let b = bucket_of(c, self.buckets) as usize;
                     for &(j, listed) in &self.entries[self.start[b] as usize..self.start[b + 1] as usize] {
                         if listed == c {
                             visit(j as usize);
@@ -443,43 +619,147 @@ mod tests {
         assert!(apart_at_rest(index(5, 5), index(7, 5), 11, [0.1f32, 0.1], 0.15));
     }
 
-    /// The hash finds exactly the pairs a search of every pair finds, for vertices that moved by
-    /// up to the margin since the rebuild; and misses some when they moved further.
+    /// The hash finds every pair within its cell side.
     #[test]
-    fn the_hash_finds_every_close_pair_within_its_margin() {
-        let (r, margin) = (0.05, 0.02);
-        let mut seed = 12345u64;
-        let mut random = || {
+    fn the_hash_finds_every_pair_within_its_cell() {
+        let (h, n) = (0.05, 600);
+        let mut random = random_numbers(12345);
+        let points: Vec<Vec3<f64>> = (0..n).map(|_| v(random(), random() * 0.3, random())).collect();
+        let hash = CellHash::build(&points, h, 1024);
+        for (i, &xi) in points.iter().enumerate() {
+            let mut found = Vec::new();
+            hash.for_each_near(xi, |j| found.push(j));
+            let mut sorted = found.clone();
+            sorted.sort_unstable();
+            sorted.dedup();
+            assert_eq!(sorted.len(), found.len(), "a vertex is visited once");
+            for (j, &xj) in points.iter().enumerate() {
+                if (xi - xj).length() < h {
+                    assert!(found.contains(&j), "{i} and {j} are {} apart", (xi - xj).length());
+                }
+            }
+        }
+    }
+
+    /// A pseudo-random sequence in [−0.5, 0.5).
+    fn random_numbers(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
-        let listed: Vec<Vec3<f64>> = (0..600).map(|_| v(random(), random() * 0.3, random())).collect();
-        let mut check = |moved_by: f64| -> usize {
-            let now: Vec<Vec3<f64>> = listed
+        }
+    }
+
+    /// An `n × n` grid of spacing `s` crumpled into a ball: every vertex moved by up to `3 s` at
+    /// random, so that many pairs far apart on the grid come close.
+    fn crumpled(n: usize, s: f64, seed: u64) -> Vec<Vec3<f64>> {
+        let mut random = random_numbers(seed);
+        (0..n * n)
+            .map(|k| {
+                let (i, j) = ((k % n) as f64, (k / n) as f64);
+                v(i * s * 0.3 + 6.0 * s * random(), j * s * 0.3 + 6.0 * s * random(), 6.0 * s * random())
+            })
+            .collect()
+    }
+
+    /// Near and far partners together are exactly the pairs a search of every pair finds closer
+    /// than the thickness and apart at rest, each once.
+    #[test]
+    fn near_and_far_partners_are_every_close_pair_once() {
+        let (n, s) = (20, 0.01);
+        let r = 1.5 * s;
+        let x = crumpled(n, s, 7);
+        let hash = CellHash::build(&x, r, 512);
+        let mut far_pairs = 0;
+        for i in 0..n * n {
+            let mut found = Vec::new();
+            for_each_near_partner(i, n, n, [s, s], r, |j| {
+                if (x[i] - x[j]).length() < r {
+                    found.push(j);
+                }
+            });
+            let far = far_partners(&hash, &x, i, n, [s, s], r, r);
+            far_pairs += far.len();
+            assert!(far.windows(2).all(|w| w[0] < w[1]), "far partners in increasing index");
+            found.extend(far);
+            let mut expected: Vec<usize> =
+                (0..n * n).filter(|&j| (x[i] - x[j]).length() < r && apart_at_rest(i, j, n, [s, s], r)).collect();
+            expected.sort_unstable();
+            found.sort_unstable();
+            assert_eq!(found, expected, "vertex {i}");
+        }
+        assert!(far_pairs > 100, "the crumpled grid has far contacts ({far_pairs})");
+    }
+
+    /// The GPU's candidate lists: built at `X⁰` with the window `r + W`, they hold every far pair
+    /// closer than `r` at any later state whose relative motion stays within the margin `W`; the
+    /// test can fail: with three times the motion, pairs are missed.
+    #[test]
+    fn candidate_lists_hold_every_far_contact_within_the_margin() {
+        let (n, s) = (20, 0.01);
+        let (r, w) = (1.5 * s, 1.0 * s);
+        let rebuild = crumpled(n, s, 99);
+        let hash = CellHash::build(&rebuild, r + w, 512);
+        let lists: Vec<Vec<usize>> =
+            (0..n * n).map(|i| far_partners(&hash, &rebuild, i, n, [s, s], r, r + w)).collect();
+        let mut random = random_numbers(5);
+        let mut missed_after = |relative: f64| -> usize {
+            // Each vertex moves by at most half the relative motion, so two move apart by at most it.
+            let now: Vec<Vec3<f64>> = rebuild
                 .iter()
                 .map(|&x| {
                     let d = v(random(), random(), random());
-                    x + d * (moved_by / d.length())
+                    x + d * (0.5 * relative / d.length())
                 })
                 .collect();
-            let hash = CellHash::build(&listed, r + margin, 1024);
-            let mut missed = 0;
-            for (i, &xi) in now.iter().enumerate() {
-                let mut found = Vec::new();
-                hash.for_each_near(xi, 1024, |j| found.push(j));
-                let mut sorted = found.clone();
-                sorted.sort_unstable();
-                sorted.dedup();
-                assert_eq!(sorted.len(), found.len(), "a vertex is visited once");
-                for (j, &xj) in now.iter().enumerate() {
-                    if j != i && (xi - xj).length() < r && !found.contains(&j) {
-                        missed += 1;
-                    }
-                }
-            }
-            missed
+            let hash_now = CellHash::build(&now, r, 512);
+            (0..n * n)
+                .map(|i| {
+                    far_partners(&hash_now, &now, i, n, [s, s], r, r).iter().filter(|j| !lists[i].contains(j)).count()
+                })
+                .sum()
         };
-        assert_eq!(check(margin * 0.999), 0, "within the margin nothing is missed");
-        assert!(check(margin * 3.0) > 0, "beyond it the hash misses pairs (the test can fail)");
+        assert_eq!(missed_after(w * (1.0 - MARGIN_ROUNDING)), 0, "within the margin nothing is missed");
+        assert!(missed_after(3.0 * w) > 0, "beyond it pairs are missed (the test can fail)");
+    }
+
+    #[test]
+    fn the_motion_bound_adds_each_box_diagonal_and_a_rebuild_is_due_at_the_margin() {
+        let mut b = MotionBound::default();
+        b.add([0.0, -1e-3, 0.0], [3e-3, 3e-3, 0.0], 2);
+        assert!((b.bound - 1e-2).abs() < 1e-15, "2 × |(3, 4, 0)| mm: {}", b.bound);
+        assert!(!rebuild_due(b.bound, 0.005, 0.016));
+        assert!(rebuild_due(b.bound, 0.006, 0.016));
+        assert!(rebuild_due(f64::NAN, 0.0, 1.0), "a state that is not a number rebuilds");
+    }
+
+    #[test]
+    fn order_keys_order_like_the_numbers() {
+        let values = [-3.5f32, -1e-30, -0.0, 0.0, 1e-30, 2.0, 7e20];
+        for pair in values.windows(2) {
+            assert!(order_key(pair[0]) <= order_key(pair[1]), "{pair:?}");
+            assert!(!order_key(pair[0]) >= !order_key(pair[1]), "inverted keys order the other way");
+        }
+        for &x in &values {
+            assert_eq!(from_order_key(order_key(x)).to_bits(), x.to_bits());
+            assert_ne!(order_key(x), 0, "0 means nothing recorded");
+        }
+    }
+
+    #[test]
+    fn the_check_interval_leaves_half_the_margin_to_the_measured_motion() {
+        let mut scene = Scene::default();
+        scene.cloth.resolution = [101, 101];
+        scene.cloth.size = [1.0, 1.0];
+        scene.self_collision.max_speed = 3.0;
+        scene.time.substeps = crate::scene::Substeps::Fixed(64);
+        let q = SelfCollisionQuantities::of(&scene);
+        let relative_step = 2.0 * 3.0 * scene.substep_dt();
+        assert!((q.margin - 0.01).abs() < 1e-12 && (q.window - 0.025).abs() < 1e-12);
+        assert!(q.lookahead <= q.margin / 2.0);
+        assert!(q.check_interval == MAX_CHECK_INTERVAL || relative_step * q.check_interval as f64 > q.margin / 2.0);
+        assert_eq!(q.lookahead, relative_step * (q.check_interval - 1) as f64, "Euler evaluates the substep's start");
+        scene.integrator = Integrator::RungeKutta4;
+        let rk4 = SelfCollisionQuantities::of(&scene);
+        assert_eq!(rk4.lookahead, relative_step * rk4.check_interval as f64, "RK4's stages reach one substep further");
     }
 }

@@ -2,6 +2,7 @@
 
 use crate::error::SimError;
 use crate::scene::Scene;
+use crate::self_collision::SelfCollisionQuantities;
 
 /// The dynamic state of a cloth: what is handed from one backend to another.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -45,6 +46,9 @@ pub struct Diagnostics {
     pub max_penetration_m: f64,
     /// Substeps run since creation.
     pub substeps_run: u64,
+    /// With `SelfCollision` on a GPU backend, how its candidate lists fared since creation
+    /// (the CPU reference keeps none).
+    pub candidate_lists: Option<crate::self_collision::CandidateListStats>,
 }
 
 /// What the last [`Simulator::advance`] cost in host–device traffic (all zero on the CPU).
@@ -179,9 +183,9 @@ impl Scene {
         } else if self.integrator != new.integrator {
             Some("the integrator".into())
         } else if self.effects.contains(crate::Effect::SelfCollision)
-            && self.self_collision.rebuild_interval != new.self_collision.rebuild_interval
+            && SelfCollisionQuantities::of(self).check_interval != SelfCollisionQuantities::of(new).check_interval
         {
-            Some("self-collision's rebuild interval (the GPU's schedule of hash rebuilds)".into())
+            Some("self-collision's check interval (the GPU's schedule of candidate-list checks)".into())
         } else {
             None
         }

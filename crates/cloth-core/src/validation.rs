@@ -212,12 +212,11 @@ impl Checker {
         self.non_negative("self_collision.damping", s.damping, "N·s/m");
         self.non_negative("self_collision.friction", s.friction, "(dimensionless)");
         self.positive("self_collision.max_speed", s.max_speed, "m/s");
-        if s.rebuild_interval == 0 {
-            self.fail(
-                "self_collision.rebuild_interval",
-                "is 0 substeps; the hash is rebuilt every rebuild_interval substeps",
-                "give 1 (every substep) or more",
-            );
+        match s.margin {
+            crate::self_collision::Thickness::Spacings(f) => {
+                self.positive("self_collision.margin.Spacings", f, "(grid spacings)")
+            }
+            crate::self_collision::Thickness::Meters(m) => self.positive("self_collision.margin.Meters", m, "m"),
         }
         if self.problems.len() + self.more != before || self.problems.iter().any(|p| p.field.starts_with("time")) {
             return;
@@ -264,7 +263,7 @@ impl Checker {
                     field,
                     format!(
                         "moves its pins at up to {speed:.3} m/s, faster than self_collision.max_speed, {} m/s \
-                         (the spatial hash's margin assumes no vertex is faster)",
+                         (the candidate lists' checks assume no vertex is faster)",
                         q.max_speed
                     ),
                     "slow the pins' motion or raise self_collision.max_speed",

@@ -63,6 +63,7 @@ pub fn copy_bandwidth<B: GpuBackend>(tuning: &GpuTuning) -> Result<CopyBandwidth
             bind_group: k as usize % 2,
             workgroups: [COPY_WORKGROUPS, 1],
             dynamic_offset: None,
+            indirect: None,
         })
         .collect();
     let timed = backend.create_timer();
@@ -71,6 +72,7 @@ pub fn copy_bandwidth<B: GpuBackend>(tuning: &GpuTuning) -> Result<CopyBandwidth
         dispatches: &dispatches[..n],
         pipelines: &pipelines,
         bind_groups: &groups,
+        indirect: None,
     };
     backend.submit(frame(1, None))?;
     backend.read(&[(&buffers[0], 16)])?;

@@ -49,7 +49,7 @@ macro_rules! gpu_struct {
 }
 
 gpu_struct! {
-    /// Simulation parameters, one uniform buffer (432 bytes). Every field can change between
+    /// Simulation parameters, one uniform buffer (448 bytes). Every field can change between
     /// frames without rebuilding a pipeline.
     GpuSimParams as "SimParams" {
         /// Gravitational acceleration, m/s² (xyz; w unused).
@@ -89,12 +89,17 @@ gpu_struct! {
         /// Self-collision: thickness `r`, m; stiffness `k_s`, N/m; damping `c_s`, N·s/m;
         /// friction `μ` (`cloth_core::self_collision`).
         self_contact: [f32; 4],
-        /// Self-collision: the hash's cell side `h`, m; the speed limit `s_max`, m/s; the grid
-        /// spacing along u and v, m (the rest-distance filter).
+        /// Self-collision: the candidate window `r + W`, the cell side of the hash, m; the speed
+        /// limit `s_max`, m/s; the grid spacing along u and v, m (the rest-distance filter).
         self_hash: [f32; 4],
-        /// The hash table in its buffer ([`SelfHashTable`]): buckets `T`, the index of the
-        /// first block sum, the index of the first entry, the number of blocks.
+        /// The hash table and candidate lists in their buffer ([`SelfHashTable`]): buckets `T`,
+        /// the index of the first block sum, the index of the first candidate count, the number
+        /// of blocks.
         self_table: [u32; 4],
+        /// Self-collision's checks: the margin less its rounding share, `(1 − 2⁻¹⁰) W`, m; the
+        /// lookahead `L`, m; the substeps between two checks `C` (`cloth_core::self_collision`);
+        /// unused.
+        self_lists: [f32; 4],
     }
 }
 
@@ -104,10 +109,14 @@ pub const PIN_MOTION_WORDS: usize = 4;
 /// Buckets a workgroup of the hash's prefix sum scans (`shaders/*/self_hash.*`).
 pub const HASH_SCAN_BLOCK: u32 = 256;
 
-/// Where the spatial hash of self-collision lives in its `u32` buffer: `T` bucket starts (each
-/// relative to its block), one sum per block of [`HASH_SCAN_BLOCK`] buckets (made absolute by the
-/// second scan), then four words an entry (the cell's `x`, `y`, `z` and the vertex), one entry a
-/// vertex. A bucket's entries start at `start[b] + block_sum[b / 256]`.
+/// Where self-collision's spatial hash and candidate lists live in their `u32` buffer (the
+/// "words"): `T` bucket starts (each relative to its block), one sum per block of
+/// [`HASH_SCAN_BLOCK`] buckets (made absolute by the second scan), one candidate count a vertex,
+/// then [`LIST_CAPACITY`] candidate slots a vertex, slot-major (slot `k` of vertex `i` at
+/// `lists + k n + i`, so the invocations of a workgroup read consecutive words). A bucket's
+/// entries start at `start[b] + block_sum[b / 256]`. The entries themselves are in a `vec4<u32>`
+/// buffer of `2 n`: entry `e` is the listed vertex's position at the rebuild (the bits of three
+/// `f32`, m) and its index; after the `n` entries, each vertex's own position at the rebuild.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SelfHashTable {
     /// Buckets `T`.
@@ -116,19 +125,68 @@ pub struct SelfHashTable {
     pub blocks: u32,
     /// Index of the first block sum.
     pub block_sums: u32,
-    /// Index of the first entry's first word.
-    pub entries: u32,
+    /// Index of the first vertex's candidate count.
+    pub counts: u32,
+    /// Index of the first candidate slot.
+    pub lists: u64,
     /// Words of the buffer.
     pub words: u64,
+    /// `vec4<u32>`s of the entry buffer, `2 n`.
+    pub entries: u64,
 }
 
 impl SelfHashTable {
-    /// The table of `scene`'s vertices.
+    /// The table and lists of `scene`'s vertices.
     pub fn of(scene: &Scene) -> Self {
         let buckets = cloth_core::self_collision::SelfCollisionQuantities::of(scene).buckets;
         let blocks = buckets.div_ceil(HASH_SCAN_BLOCK);
-        let entries = buckets + blocks;
-        Self { buckets, blocks, block_sums: buckets, entries, words: entries as u64 + 4 * scene.vertex_count() as u64 }
+        let n = scene.vertex_count() as u64;
+        let counts = buckets + blocks;
+        let lists = counts as u64 + n;
+        Self {
+            buckets,
+            blocks,
+            block_sums: buckets,
+            counts,
+            lists,
+            words: lists + LIST_CAPACITY as u64 * n,
+            entries: 2 * n,
+        }
+    }
+}
+
+/// The most candidates a vertex keeps (`cloth_core::self_collision::LIST_CAPACITY`).
+pub const LIST_CAPACITY: u32 = cloth_core::self_collision::LIST_CAPACITY;
+
+/// The passes that rebuild the hash and the candidate lists, in order, each an indirect
+/// dispatch: count, scan, sums, scatter, candidates. The check writes their workgroups
+/// `(x, y, z, unused)` into a buffer of their own, [`REBUILD_PASSES`] `uvec4`s, which only the
+/// check binds (a dispatch may not read its size from a buffer it binds for writing).
+pub const REBUILD_PASSES: usize = 5;
+
+gpu_struct! {
+    /// What self-collision's check and the substeps share on the GPU (128 bytes, one storage
+    /// buffer): the bound on the cloth's relative motion since the last rebuild, and the counters
+    /// a test or a report reads.
+    GpuSelfControl as "SelfControl" {
+        /// The rebuild passes' workgroups `(x, y, z, unused)` for a rebuild, in
+        /// [`REBUILD_PASSES`] order (the plan's): the check copies them to the dispatch buffer
+        /// when a rebuild is due, and zeros otherwise.
+        full: [[u32; 4]; REBUILD_PASSES],
+        /// The largest [`cloth_core::self_collision::order_key`] of each displacement component
+        /// since the last check (x, y, z; w unused), 0 when none was recorded.
+        motion_high: [u32; 4],
+        /// The largest inverted key, which is the smallest component.
+        motion_low: [u32; 4],
+        /// The bound `B` on the relative motion since the last rebuild, m.
+        bound: f32,
+        /// Rebuilds so far.
+        rebuilds: u32,
+        /// Checks so far.
+        checks: u32,
+        /// Lists that overflowed [`LIST_CAPACITY`], over all rebuilds so far (a vertex's at each
+        /// rebuild).
+        overflows: u32,
     }
 }
 
@@ -212,7 +270,13 @@ gpu_struct! {
 
 /// The layouts of every struct the shaders share with the host.
 pub fn struct_layouts() -> Vec<StructLayout> {
-    vec![GpuSimParams::layout(), GpuCollider::layout(), GpuConstraint::layout(), GpuColorRange::layout()]
+    vec![
+        GpuSimParams::layout(),
+        GpuCollider::layout(),
+        GpuConstraint::layout(),
+        GpuColorRange::layout(),
+        GpuSelfControl::layout(),
+    ]
 }
 
 /// Bytes between two [`GpuColorRange`]s in their uniform buffer: 256, the largest
@@ -263,8 +327,14 @@ impl GpuSimParams {
             pin_motion,
             rest_lengths: v4(q.rest_lengths, 0.0),
             self_contact: [f(s.thickness), f(s.stiffness), f(s.damping), f(s.friction)],
-            self_hash: [f(s.cell), f(s.max_speed), f(s.spacing[0]), f(s.spacing[1])],
-            self_table: [table.buckets, table.block_sums, table.entries, table.blocks],
+            self_hash: [f(s.window), f(s.max_speed), f(s.spacing[0]), f(s.spacing[1])],
+            self_table: [table.buckets, table.block_sums, table.counts, table.blocks],
+            self_lists: [
+                f(s.margin * (1.0 - cloth_core::self_collision::MARGIN_ROUNDING)),
+                f(s.lookahead),
+                s.check_interval as f32,
+                0.0,
+            ],
         }
     }
 }

@@ -21,7 +21,7 @@ impl MemoryEstimate {
     /// state; Verlet's half-step velocities; semi-implicit Euler's two packed states and pin
     /// bits (not with self-collision, which runs on the `vec4` state); XPBD's constraints (16
     /// bytes), multipliers (4) and normal corrections; self-collision's bucket counts, hash table
-    /// and (XPBD) corrections; colliders, the meshes' distance fields and parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
+    /// and candidate lists, entries, control and (XPBD) corrections; colliders, the meshes' distance fields and parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
     /// overflow.
     pub fn of(scene: &Scene) -> Self {
         let [nx, ny] = scene.cloth.resolution.map(u128::from);
@@ -51,12 +51,17 @@ impl MemoryEstimate {
         let colliders =
             (size_of::<crate::layout::GpuCollider>() * crate::layout::MAX_COLLIDERS) as u128 + 4 * samples.max(1);
         let xpbd = scene.integrator == Integrator::Xpbd;
+        let control = size_of::<crate::layout::GpuSelfControl>() as u128;
         let (hash, hash_largest) = if self_collision {
             let table = crate::layout::SelfHashTable::of(scene);
-            let words = 4 * table.words as u128;
-            (4 * table.buckets as u128 + words + if xpbd { 16 * vertices } else { 0 }, words)
+            let (words, entries) = (4 * table.words as u128, 16 * table.entries as u128);
+            // The rebuild's workgroups and their placeholder.
+            let dispatch = 2 * (crate::layout::REBUILD_PASSES * 16) as u128;
+            let bytes =
+                4 * table.buckets as u128 + words + entries + control + dispatch + if xpbd { 16 * vertices } else { 0 };
+            (bytes, words.max(entries).max(control))
         } else {
-            (if xpbd { 48 } else { 32 }, 0)
+            (48 + control + if xpbd { 16 } else { 0 }, control)
         };
         let params = size_of::<crate::layout::GpuSimParams>() as u128;
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);

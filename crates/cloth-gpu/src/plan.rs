@@ -10,10 +10,10 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
-    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSimParams, HASH_SCAN_BLOCK, MAX_COLLIDERS,
-    SelfHashTable,
+    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, HASH_SCAN_BLOCK,
+    MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
 };
-use crate::schedule::{HashRebuild, PackedPasses, Pass, Schedule, TiledPass};
+use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
 use crate::tuning::{GpuTuning, invalid};
 
 /// Index into [`Plan::buffers`].
@@ -34,6 +34,8 @@ pub enum BufferUsage {
     Storage,
     /// A storage buffer a renderer on the same device may also draw from (vertex positions).
     StorageDrawable,
+    /// A storage buffer that indirect dispatches also read their sizes from.
+    StorageIndirect,
 }
 
 /// A buffer: its label, usage, size in bytes, and contents (`None`: zeros).
@@ -77,7 +79,8 @@ pub enum Shader {
     Xpbd,
     /// `copy`: the copy kernel that measures the memory bandwidth ([`crate::bandwidth`]).
     Copy,
-    /// `self_hash`: the four passes that rebuild self-collision's spatial hash.
+    /// `self_hash`: self-collision's check and the passes that rebuild its spatial hash and
+    /// candidate lists.
     SelfHash,
 }
 
@@ -120,7 +123,7 @@ pub enum Constant {
     TileCells,
     /// Substeps per tiled dispatch.
     FusedSubsteps,
-    /// `self_hash`'s pass (0 count, 1 scan, 2 sums, 3 scatter).
+    /// `self_hash`'s pass ([`HashPass`]).
     HashPass,
 }
 
@@ -169,6 +172,43 @@ impl Constant {
     /// sizes, which size workgroup arrays (the backend writes them into the module's source).
     pub fn is_wgsl_module_constant(self) -> bool {
         matches!(self, Constant::TileWidth | Constant::TileHeight | Constant::TileCells | Constant::FusedSubsteps)
+    }
+}
+
+/// The passes of `self_hash`, the value of its [`Constant::HashPass`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HashPass {
+    /// Every vertex adds 1 to its bucket's count.
+    Count = 0,
+    /// Exclusive prefix sums of the counts within blocks of [`HASH_SCAN_BLOCK`].
+    Scan = 1,
+    /// Exclusive prefix sums of the blocks' totals (one workgroup).
+    Sums = 2,
+    /// Every vertex takes a slot of its bucket and writes its entry.
+    Scatter = 3,
+    /// Every vertex lists its candidates.
+    Candidates = 4,
+    /// The check: sizes the rebuild's dispatches, full when a rebuild is due, zero otherwise.
+    Check = 5,
+    /// The check that always rebuilds.
+    ForcedCheck = 6,
+}
+
+impl HashPass {
+    /// The rebuild's passes, in order ([`REBUILD_PASSES`]).
+    pub const REBUILD: [HashPass; REBUILD_PASSES] =
+        [HashPass::Count, HashPass::Scan, HashPass::Sums, HashPass::Scatter, HashPass::Candidates];
+
+    fn label(self) -> &'static str {
+        match self {
+            HashPass::Count => "count",
+            HashPass::Scan => "scan",
+            HashPass::Sums => "sums",
+            HashPass::Scatter => "scatter",
+            HashPass::Candidates => "candidates",
+            HashPass::Check => "check",
+            HashPass::ForcedCheck => "forced check",
+        }
     }
 }
 
@@ -221,6 +261,11 @@ pub struct StateBuffers {
     pub velocities: [BufferId; 2],
     /// Deepest penetration so far, m, as the bits of an `f32`.
     pub max_penetration: BufferId,
+    /// With `SelfCollision`, the workgroups of its rebuild's passes, which the indirect
+    /// dispatches read ([`crate::layout::REBUILD_PASSES`]).
+    pub indirect: Option<BufferId>,
+    /// With `SelfCollision`, its [`GpuSelfControl`].
+    pub self_control: Option<BufferId>,
 }
 
 /// Everything a backend creates for a simulation, and the schedule of its frames.
@@ -259,17 +304,21 @@ const STEP_EXTRA_BINDINGS: [Binding; 6] = [WRITE, READ, READ, WRITE, WRITE, READ
 /// 13 of `cloth_step`.
 const DISTANCE_FIELDS: Binding = READ;
 
-/// `cloth_step`'s binding 14: self-collision's spatial hash ([`SelfHashTable`]).
-const SELF_HASH: Binding = READ;
+/// Self-collision's buffers as the force kernels bind them: the hash and candidate lists' words
+/// and the entries ([`SelfHashTable`]), read; the [`GpuSelfControl`], whose displacement box
+/// the substeps update.
+const SELF_COLLISION: [Binding; 3] = [READ, READ, WRITE];
 
-/// `self_hash`'s bindings: the parameters, the positions it lists, the bucket counts, the table.
-const SELF_HASH_BINDINGS: [Binding; 4] = [PARAMS, READ, WRITE, WRITE];
+/// `self_hash`'s bindings: the parameters, the positions it lists, the bucket counts, the words,
+/// the entries, the control, the rebuild's workgroups (which the check writes, and the rebuild's
+/// passes, reading them as their sizes, bind a placeholder for).
+const SELF_HASH_BINDINGS: [Binding; 7] = [PARAMS, READ, WRITE, WRITE, WRITE, WRITE, WRITE];
 
 /// `xpbd`'s bindings: parameters, colliders, constraints, positions and velocities in, positions
 /// and velocities out, the deepest penetration, the multipliers, the normal corrections, the
 /// colour range (a block of the colour-range buffer, chosen by a dynamic offset), the distance
-/// fields, self-collision's hash and its corrections.
-const XPBD_BINDINGS: [Binding; 14] = [
+/// fields, self-collision's corrections, then its buffers ([`SELF_COLLISION`]).
+const XPBD_BINDINGS: [Binding; 16] = [
     PARAMS,
     COLLIDERS,
     READ,
@@ -282,8 +331,10 @@ const XPBD_BINDINGS: [Binding; 14] = [
     WRITE,
     COLOR_RANGE,
     DISTANCE_FIELDS,
-    SELF_HASH,
     WRITE,
+    SELF_COLLISION[0],
+    SELF_COLLISION[1],
+    SELF_COLLISION[2],
 ];
 
 const NAME: [&str; 2] = ["A", "B"];
@@ -382,6 +433,8 @@ impl Plan {
             positions: NAME.map(|n| b.filled(&format!("positions {n}"), drawable, bytemuck::cast_slice(&positions))),
             velocities: NAME.map(|n| b.filled(&format!("velocities {n}"), storage, bytemuck::cast_slice(&velocities))),
             max_penetration: b.buffer("max penetration", storage, 4, None),
+            indirect: None,
+            self_control: None,
         };
         b.plan.state = state;
         b.plan.schedule = match scene.integrator {
@@ -423,7 +476,7 @@ fn force_based(
     // runs neither tiled nor on the packed state.
     let self_collision = scene.effects.contains(Effect::SelfCollision);
     let tile = if self_collision { None } else { TileConfig::choose(tuning, scene.integrator, nx * ny, limits)? };
-    let (hash_counts, hash_words) = self_hash_buffers(b);
+    let self_buffers = self_collision_buffers(b, limits);
     let rk4 = scene.integrator == Integrator::RungeKutta4;
     let rk4_scratch = b.buffer("RK4 scratch", storage, if rk4 { 64 * n } else { 64 }, None);
     // Placeholders for the packed bindings of the passes that do not use them: a read-only one,
@@ -434,7 +487,7 @@ fn force_based(
     let unpacked = [read, read, xv_out, v_out, read];
     let kernel = b.kernel(
         Shader::Step,
-        &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS, &[DISTANCE_FIELDS, SELF_HASH]].concat(),
+        &[STATE_BINDINGS.as_slice(), &STEP_EXTRA_BINDINGS, &[DISTANCE_FIELDS], &SELF_COLLISION].concat(),
     );
     let blocks = BlockGrid::new(tuning, nx, ny, limits.max_workgroups_per_dimension);
     let w = blocks.width;
@@ -444,12 +497,19 @@ fn force_based(
             &common[..],
             &[x_in, v_in, x_out, v_out, s.max_penetration, rk4_scratch],
             &packed[..],
-            &[s.distance_fields, hash_words],
+            &[s.distance_fields],
+            &self_buffers.bound(),
         ]
         .concat();
         b.group(kernel, label, buffers)
     };
-    let pass = |pipeline, groups| Pass { pipeline, groups, workgroups: blocks.workgroups, dynamic_offset: None };
+    let pass = |pipeline, groups| Pass {
+        pipeline,
+        groups,
+        workgroups: blocks.workgroups,
+        dynamic_offset: None,
+        indirect: None,
+    };
     let step = |stage: u32| [(Constant::Stage, stage), (Constant::BlockWidth, w)];
     let mut schedule = Schedule::default();
     match scene.integrator {
@@ -483,7 +543,7 @@ fn force_based(
                 });
                 let workgroups = tile.workgroups(nx, ny);
                 schedule.tiled = Some(TiledPass {
-                    pass: Pass { pipeline, groups, workgroups, dynamic_offset: None },
+                    pass: Pass { pipeline, groups, workgroups, dynamic_offset: None, indirect: None },
                     substeps: tile.substeps,
                 });
             } else if tuning.packed_state && !self_collision && scene.cloth.pin_groups.is_empty() {
@@ -532,53 +592,104 @@ fn force_based(
         }
     }
     if self_collision {
-        schedule.rebuild = Some(hash_rebuild(b, hash_counts, hash_words, limits));
+        schedule.self_collision = Some(self_collision_checks(b, &self_buffers));
     }
     Ok(schedule)
 }
 
-/// Self-collision's bucket counts and table ([`SelfHashTable`]), sized for the scene with
-/// `SelfCollision` and 16-byte placeholders without.
-fn self_hash_buffers(b: &mut Builder) -> (BufferId, BufferId) {
-    let storage = BufferUsage::Storage;
-    if !b.scene.effects.contains(Effect::SelfCollision) {
-        let counts = b.buffer("self-collision counts placeholder", storage, 16, None);
-        let words = b.buffer("self-collision hash placeholder", storage, 16, None);
-        return (counts, words);
-    }
-    let table = SelfHashTable::of(b.scene);
-    let counts = b.buffer("self-collision bucket counts", storage, 4 * table.buckets as u64, None);
-    let words = b.buffer("self-collision hash", storage, 4 * table.words, None);
-    (counts, words)
+/// Self-collision's buffers ([`SelfHashTable`], [`GpuSelfControl`]), sized for the scene with
+/// `SelfCollision` and placeholders without.
+struct SelfCollisionBuffers {
+    /// The buckets' counts.
+    counts: BufferId,
+    /// The table and the candidate lists.
+    words: BufferId,
+    /// The entries and the positions at the last rebuild.
+    entries: BufferId,
+    /// The control.
+    control: BufferId,
+    /// The rebuild's passes' workgroups, which the check writes and their dispatches read; and
+    /// what the passes bind in its place.
+    dispatch: BufferId,
+    dispatch_placeholder: BufferId,
+    /// The rebuild's passes' workgroups for a rebuild.
+    workgroups: [[u32; 2]; REBUILD_PASSES],
 }
 
-/// The four passes that rebuild the hash from state `k`'s positions (`self_hash`).
-fn hash_rebuild(b: &mut Builder, counts: BufferId, words: BufferId, limits: &DeviceLimits) -> HashRebuild {
-    let kernel = b.kernel(Shader::SelfHash, &SELF_HASH_BINDINGS);
-    let s = b.plan.state;
-    let groups = [0, 1].map(|k| {
-        b.group(kernel, format!("self-collision hash of {}", NAME[k]), vec![s.params, s.positions[k], counts, words])
-    });
+impl SelfCollisionBuffers {
+    /// The buffers of [`SELF_COLLISION`], in binding order.
+    fn bound(&self) -> [BufferId; 3] {
+        [self.words, self.entries, self.control]
+    }
+}
+
+fn self_collision_buffers(b: &mut Builder, limits: &DeviceLimits) -> SelfCollisionBuffers {
+    let storage = BufferUsage::Storage;
+    let control_bytes = size_of::<GpuSelfControl>() as u64;
+    if !b.scene.effects.contains(Effect::SelfCollision) {
+        let control = b.buffer("self-collision control placeholder", storage, control_bytes, None);
+        return SelfCollisionBuffers {
+            counts: b.buffer("self-collision counts placeholder", storage, 16, None),
+            words: b.buffer("self-collision words placeholder", storage, 16, None),
+            entries: b.buffer("self-collision entries placeholder", storage, 16, None),
+            control,
+            dispatch: control,
+            dispatch_placeholder: control,
+            workgroups: [[0; 2]; REBUILD_PASSES],
+        };
+    }
     let table = SelfHashTable::of(b.scene);
     let n = b.scene.vertex_count() as u32;
     let max = limits.max_workgroups_per_dimension;
-    let workgroups = [
-        spilled_workgroups(n, HASH_SCAN_BLOCK, max),
-        [table.blocks, 1],
-        [1, 1],
-        spilled_workgroups(n, HASH_SCAN_BLOCK, max),
-    ];
-    let passes = ["count", "scan", "sums", "scatter"]
-        .iter()
-        .enumerate()
-        .map(|(pass, what)| {
-            let label = format!("self-collision hash {what}");
-            let pipeline = b.pipeline(kernel, &label, &[(Constant::HashPass, pass as u32)]);
-            Pass { pipeline, groups, workgroups: workgroups[pass], dynamic_offset: None }
+    let vertices = spilled_workgroups(n, HASH_SCAN_BLOCK, max);
+    let workgroups = [vertices, [table.blocks, 1], [1, 1], vertices, vertices];
+    let mut control = GpuSelfControl::default();
+    for (full, [x, y]) in control.full.iter_mut().zip(workgroups) {
+        *full = [x, y, 1, 0];
+    }
+    let dispatch_bytes = (REBUILD_PASSES * size_of::<[u32; 4]>()) as u64;
+    SelfCollisionBuffers {
+        counts: b.buffer("self-collision bucket counts", storage, 4 * table.buckets as u64, None),
+        words: b.buffer("self-collision hash and candidates", storage, 4 * table.words, None),
+        entries: b.buffer("self-collision entries", storage, 16 * table.entries, None),
+        control: b.filled("self-collision control", storage, bytemuck::bytes_of(&control)),
+        dispatch: b.buffer("self-collision rebuild workgroups", BufferUsage::StorageIndirect, dispatch_bytes, None),
+        dispatch_placeholder: b.buffer("self-collision rebuild workgroups placeholder", storage, dispatch_bytes, None),
+        workgroups,
+    }
+}
+
+/// Self-collision's check (one workgroup) and the rebuild's indirect passes, reading state `k`'s
+/// positions (`self_hash`).
+fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> SelfCollisionChecks {
+    let kernel = b.kernel(Shader::SelfHash, &SELF_HASH_BINDINGS);
+    let s = b.plan.state;
+    let groups = |b: &mut Builder, what: &str, dispatch: BufferId| {
+        [0, 1].map(|k| {
+            let (p, c) = (s.positions[k], buffers.control);
+            let bound = vec![s.params, p, buffers.counts, buffers.words, buffers.entries, c, dispatch];
+            b.group(kernel, format!("self-collision {what} of {}", NAME[k]), bound)
+        })
+    };
+    let checks = groups(b, "check", buffers.dispatch);
+    let rebuilds = groups(b, "rebuild", buffers.dispatch_placeholder);
+    b.plan.state.indirect = Some(buffers.dispatch);
+    b.plan.state.self_control = Some(buffers.control);
+    let pass = |b: &mut Builder, which: HashPass, groups, workgroups, indirect| {
+        let label = format!("self-collision {}", which.label());
+        let pipeline = b.pipeline(kernel, &label, &[(Constant::HashPass, which as u32)]);
+        Pass { pipeline, groups, workgroups, dynamic_offset: None, indirect }
+    };
+    let check = pass(b, HashPass::Check, checks, [1, 1], None);
+    let forced = pass(b, HashPass::ForcedCheck, checks, [1, 1], None);
+    let rebuild = (HashPass::REBUILD.iter().enumerate())
+        .map(|(k, &which)| {
+            let offset = (k * size_of::<[u32; 4]>()) as u64;
+            pass(b, which, rebuilds, buffers.workgroups[k], Some(offset))
         })
         .collect();
-    let interval = cloth_core::self_collision::SelfCollisionQuantities::of(b.scene).rebuild_interval.max(1);
-    HashRebuild { passes, interval }
+    let interval = cloth_core::self_collision::SelfCollisionQuantities::of(b.scene).check_interval.max(1);
+    SelfCollisionChecks { check, forced, rebuild, interval }
 }
 
 /// Semi-implicit Euler's packed passes (`geometry`'s packed state).
@@ -662,7 +773,7 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
     let corrections = b.buffer("XPBD normal corrections", storage, 4 * n, None);
     let range_buffer = b.filled("XPBD colour ranges", BufferUsage::Uniform, &ranges);
     let self_collision = scene.effects.contains(Effect::SelfCollision);
-    let (hash_counts, hash_words) = self_hash_buffers(b);
+    let self_buffers = self_collision_buffers(b, limits);
     let self_corrections =
         b.buffer("XPBD self-contact corrections", storage, if self_collision { 16 * n } else { 16 }, None);
     let kernel = b.kernel(Shader::Xpbd, &XPBD_BINDINGS);
@@ -672,15 +783,8 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
         let buffers = vec![s.params, s.colliders, constraint_buffer, p[k], v[k], p[1 - k], v[1 - k]];
         let buffers = [
             buffers,
-            vec![
-                s.max_penetration,
-                lambdas,
-                corrections,
-                range_buffer,
-                s.distance_fields,
-                hash_words,
-                self_corrections,
-            ],
+            vec![s.max_penetration, lambdas, corrections, range_buffer, s.distance_fields, self_corrections],
+            self_buffers.bound().to_vec(),
         ]
         .concat();
         b.group(kernel, format!("XPBD {} -> {}", NAME[k], NAME[1 - k]), buffers)
@@ -697,6 +801,7 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
         groups,
         workgroups,
         dynamic_offset: Some(offset),
+        indirect: None,
     };
     let mut substep = vec![pass(0, vertices, 0)];
     let contact = scene.effects.contains(Effect::Contact) && !scene.colliders.is_empty();
@@ -715,6 +820,6 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
         }
     }
     substep.push(pass(3, vertices, 0));
-    let rebuild = self_collision.then(|| hash_rebuild(b, hash_counts, hash_words, limits));
-    Schedule { substep, tiled: None, packed: None, rebuild }
+    let checks = self_collision.then(|| self_collision_checks(b, &self_buffers));
+    Schedule { substep, tiled: None, packed: None, self_collision: checks }
 }

@@ -7,10 +7,13 @@
 //! | RK4 | 4: `STAGE = 3..=6`, one per stage |
 //! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the self-contacts, the colliders); finish |
 //!
-//! With `SelfCollision`, the four dispatches that rebuild the spatial hash (`self_hash`: count,
-//! scan, sums, scatter) come before every `rebuild_interval`-th substep, counted from the
-//! simulation's first, and before the next substep after the state or the parameters were
-//! written (the speed limit keeps the hash correct between rebuilds only for states it ran).
+//! With `SelfCollision`, self-collision's check (`self_hash`, one invocation) comes before every
+//! `C`-th substep, counted from the simulation's first, followed by the five indirect dispatches
+//! that rebuild the hash and the candidate lists (count, scan, sums, scatter, candidates), whose
+//! sizes the check writes: the full sizes when a rebuild is due, zeros otherwise. Before the next
+//! substep after the state or the parameters were written, the check always rebuilds
+//! (`cloth_core::self_collision` says when a rebuild is due, and why the lists stay correct in
+//! between).
 //!
 //! Every substep reads the state buffer `k` that is current and leaves the new state in buffer
 //! `1 − k`; each pass has a bind group per `k`.
@@ -18,17 +21,21 @@
 use crate::plan::{BindGroupId, PipelineId};
 
 /// One dispatch: a pipeline, its bind group (with the dynamic offset of the layout's dynamic
-/// uniform, where it has one) and its workgroups along x and y.
+/// uniform, where it has one) and its workgroups along x and y, or the byte offset in the plan's
+/// indirect buffer ([`crate::plan::StateBuffers::indirect`]) where the GPU wrote them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Dispatch {
     /// Index into the plan's pipelines.
     pub pipeline: PipelineId,
     /// Index into the plan's bind groups.
     pub bind_group: BindGroupId,
-    /// Workgroups along x and y.
+    /// Workgroups along x and y (the most an indirect dispatch may have).
     pub workgroups: [u32; 2],
     /// The dynamic offset, bytes.
     pub dynamic_offset: Option<u32>,
+    /// Where the workgroups `(x, y, z)` of an indirect dispatch are, bytes into the indirect
+    /// buffer.
+    pub indirect: Option<u64>,
 }
 
 /// A dispatch of every substep, with its bind group when state buffer `k` is current.
@@ -42,6 +49,8 @@ pub struct Pass {
     pub workgroups: [u32; 2],
     /// The dynamic offset, bytes.
     pub dynamic_offset: Option<u32>,
+    /// Where an indirect dispatch's workgroups are, bytes into the indirect buffer.
+    pub indirect: Option<u64>,
 }
 
 impl Pass {
@@ -51,6 +60,7 @@ impl Pass {
             bind_group: self.groups[k],
             workgroups: self.workgroups,
             dynamic_offset: self.dynamic_offset,
+            indirect: self.indirect,
         }
     }
 }
@@ -87,21 +97,26 @@ pub struct TiledPass {
     pub substeps: u32,
 }
 
-/// The dispatches that rebuild self-collision's spatial hash from state `k`'s positions, and how
-/// many substeps apart.
+/// Self-collision's check and the indirect dispatches that rebuild its hash and candidate lists
+/// from state `k`'s positions, and how many substeps apart the checks come.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct HashRebuild {
-    /// Count, scan, sums, scatter.
-    pub passes: Vec<Pass>,
-    /// Substeps between rebuilds, `K` (at least 1).
+pub struct SelfCollisionChecks {
+    /// The check: orders a rebuild when the candidate lists may be stale.
+    pub check: Pass,
+    /// The check that always orders one (the first substep, and after a written state).
+    pub forced: Pass,
+    /// Count, scan, sums, scatter, candidates: indirect.
+    pub rebuild: Vec<Pass>,
+    /// Substeps between checks, `C` (at least 1).
     pub interval: u32,
 }
 
 /// The dispatches of a simulation's frames.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Schedule {
-    /// Self-collision's hash rebuild, with `SelfCollision` (never with `tiled` or `packed`).
-    pub rebuild: Option<HashRebuild>,
+    /// Self-collision's checks and rebuilds, with `SelfCollision` (never with `tiled` or
+    /// `packed`).
+    pub self_collision: Option<SelfCollisionChecks>,
     /// The dispatches of one substep, in order.
     pub substep: Vec<Pass>,
     /// Semi-implicit Euler's fused substeps, where the tiled kernel runs.
@@ -113,19 +128,25 @@ pub struct Schedule {
 impl Schedule {
     /// Appends the dispatches of `substeps` substeps starting from state `current` to `out`, and
     /// returns the state current after them (the simulation's first substeps, for a schedule
-    /// that rebuilds a hash: see [`Schedule::frame_from`]).
+    /// with self-collision: see [`Schedule::frame_from`]).
     pub fn frame(&self, substeps: u64, current: usize, out: &mut Vec<Dispatch>) -> usize {
         self.frame_from(0, false, substeps, current, out)
     }
 
-    /// [`Schedule::frame`] for substeps `first, first + 1, …` of the simulation; `stale`: the
-    /// hash must be rebuilt before the first of them whatever its number.
+    /// [`Schedule::frame`] for substeps `first, first + 1, …` of the simulation; `stale`:
+    /// self-collision's candidate lists must be rebuilt before the first of them.
     pub fn frame_from(&self, first: u64, stale: bool, substeps: u64, current: usize, out: &mut Vec<Dispatch>) -> usize {
-        if let Some(rebuild) = &self.rebuild {
+        if let Some(checks) = &self.self_collision {
             let mut k = current;
             for s in 0..substeps {
-                if (stale && s == 0) || (first + s).is_multiple_of(rebuild.interval as u64) {
-                    out.extend(rebuild.passes.iter().map(|pass| pass.on(k)));
+                let check = if stale && s == 0 {
+                    Some(&checks.forced)
+                } else {
+                    (first + s).is_multiple_of(checks.interval as u64).then_some(&checks.check)
+                };
+                if let Some(check) = check {
+                    out.push(check.on(k));
+                    out.extend(checks.rebuild.iter().map(|pass| pass.on(k)));
                 }
                 out.extend(self.substep.iter().map(|pass| pass.on(k)));
                 k = 1 - k;
@@ -140,6 +161,7 @@ impl Schedule {
                 bind_group,
                 workgroups: p.workgroups,
                 dynamic_offset: None,
+                indirect: None,
             };
             out.push(at(p.first_pipeline, p.first[current]));
             let mut m = 0;

@@ -2,10 +2,11 @@
 //! the few calls in which the backends differ (creating objects, recording a frame, copying
 //! bytes in and out).
 
+use cloth_core::self_collision::CandidateListStats;
 use cloth_core::{AdvanceCounts, ClothState, Diagnostics, Scene, SimError, Simulator};
 
 use crate::geometry::DeviceLimits;
-use crate::layout::{GpuCollider, GpuSimParams};
+use crate::layout::{GpuCollider, GpuSelfControl, GpuSimParams};
 use crate::plan::{BindGroupDesc, BufferDesc, KernelDesc, PipelineDesc, Plan, StateBuffers};
 use crate::schedule::{Dispatch, Schedule};
 use crate::tuning::GpuTuning;
@@ -23,6 +24,8 @@ pub struct Frame<'a, B: GpuBackend> {
     pub pipelines: &'a [B::Pipeline],
     /// The bind groups, by [`crate::plan::BindGroupId`].
     pub bind_groups: &'a [B::BindGroup],
+    /// The buffer indirect dispatches read their sizes from ([`StateBuffers::indirect`]).
+    pub indirect: Option<&'a B::Buffer>,
 }
 
 /// What a GPU API provides the simulator: objects made from the plan's descriptions, one
@@ -102,7 +105,7 @@ pub struct GpuSimulator<B: GpuBackend> {
     time_s: f64,
     substeps_run: u64,
     /// Whether the state or the parameters were written since the last frame: self-collision's
-    /// hash is rebuilt before the next substep.
+    /// candidate lists are rebuilt before the next substep.
     hash_stale: bool,
     last_advance: AdvanceCounts,
     /// Last, so that it is dropped after every object made on it.
@@ -241,7 +244,8 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
             self.schedule.frame_from(self.substeps_run, self.hash_stale, substeps, self.current, &mut self.dispatches);
         self.hash_stale = false;
         let (dispatches, pipelines, bind_groups) = (&self.dispatches, &self.pipelines, &self.bind_groups);
-        self.backend.submit(Frame { timestamps: self.timed, dispatches, pipelines, bind_groups })?;
+        let indirect = self.state.indirect.map(|id| &self.buffers[id]);
+        self.backend.submit(Frame { timestamps: self.timed, dispatches, pipelines, bind_groups, indirect })?;
         self.timed = self.timed.map(|pairs| pairs + 1);
         self.last_advance.submissions = 1;
         // The clock advances substep by substep, as the kernels' `velocity.w` does.
@@ -290,9 +294,23 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
-        let bytes = self.read_buffers(&[self.state.max_penetration])?;
+        let mut read = vec![self.state.max_penetration];
+        read.extend(self.state.self_control);
+        let bytes = self.read_buffers(&read)?;
         let bits = u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]);
-        Ok(Diagnostics { max_penetration_m: f32::from_bits(bits) as f64, substeps_run: self.substeps_run })
+        let candidate_lists = bytes.get(1).map(|b| {
+            let c: GpuSelfControl = bytemuck::pod_read_unaligned(&b[..size_of::<GpuSelfControl>()]);
+            CandidateListStats {
+                checks: c.checks.into(),
+                rebuilds: c.rebuilds.into(),
+                overflowed_lists: c.overflows.into(),
+            }
+        });
+        Ok(Diagnostics {
+            max_penetration_m: f32::from_bits(bits) as f64,
+            substeps_run: self.substeps_run,
+            candidate_lists,
+        })
     }
 
     fn last_advance_counts(&self) -> AdvanceCounts {

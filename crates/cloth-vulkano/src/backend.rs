@@ -10,7 +10,7 @@ use cloth_gpu::{DeviceLimits, Frame, GpuBackend, GpuTuning};
 use vulkano::buffer::{Buffer, BufferCreateInfo, Subbuffer};
 use vulkano::command_buffer::allocator::StandardCommandBufferAllocator;
 use vulkano::command_buffer::{
-    AutoCommandBufferBuilder, CommandBufferUsage, CopyBufferInfo, PrimaryAutoCommandBuffer,
+    AutoCommandBufferBuilder, CommandBufferUsage, CopyBufferInfo, DispatchIndirectCommand, PrimaryAutoCommandBuffer,
     PrimaryCommandBufferAbstract,
 };
 use vulkano::descriptor_set::allocator::StandardDescriptorSetAllocator;
@@ -217,6 +217,7 @@ impl GpuBackend for VulkanoBackend {
             BufferUsage::Storage | BufferUsage::StorageDrawable => {
                 U::STORAGE_BUFFER | U::TRANSFER_DST | U::TRANSFER_SRC
             }
+            BufferUsage::StorageIndirect => U::STORAGE_BUFFER | U::INDIRECT_BUFFER | U::TRANSFER_DST | U::TRANSFER_SRC,
         };
         let buffer = self.buffer(usage, desc.size, false)?;
         let mut builder = match self.setup.take() {
@@ -347,10 +348,18 @@ impl GpuBackend for VulkanoBackend {
                     d.dynamic_offset.as_slice(),
                 )
                 .map_err(|e| device_error(format!("binding: {e}")))?;
-                rec.dispatch([d.workgroups[0], d.workgroups[1], 1])
-                    .map_err(|e| device_error(format!("dispatch: {e}")))?;
+                match (d.indirect, frame.indirect) {
+                    (Some(offset), Some(buffer)) => {
+                        let size = size_of::<DispatchIndirectCommand>() as u64;
+                        let sizes =
+                            buffer.clone().slice(offset..offset + size).reinterpret::<[DispatchIndirectCommand]>();
+                        rec.dispatch_indirect(&sizes)
+                    }
+                    _ => rec.dispatch([d.workgroups[0], d.workgroups[1], 1]),
+                }
+                .map_err(|e| device_error(format!("dispatch: {e}")))?;
             }
-            recorder.between_dispatches().map_err(device_error)?;
+            recorder.between_dispatches(frame.indirect.is_some()).map_err(device_error)?;
         }
         if let Some((pool, first)) = &timer {
             // SAFETY: as above.

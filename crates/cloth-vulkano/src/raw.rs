@@ -89,17 +89,24 @@ impl FrameRecorder {
         )
         .map_err(|e| format!("command buffer: {e}"))?;
         let mut recorder = Self { recording };
-        recorder.barrier(PipelineStages::ALL_COMMANDS, AccessFlags::MEMORY_WRITE, AccessFlags::MEMORY_READ)?;
+        let all = PipelineStages::ALL_COMMANDS;
+        recorder.barrier(all, AccessFlags::MEMORY_WRITE, all, AccessFlags::MEMORY_READ)?;
         Ok(recorder)
     }
 
-    /// Records a global memory barrier: what `stages` wrote (`written`) is visible to the same
-    /// stages after it, for `then` and writing.
-    fn barrier(&mut self, stages: PipelineStages, written: AccessFlags, then: AccessFlags) -> Result<(), String> {
+    /// Records a global memory barrier: what `stages` wrote (`written`) is visible to `then_stages`
+    /// after it, for `then` and writing.
+    fn barrier(
+        &mut self,
+        stages: PipelineStages,
+        written: AccessFlags,
+        then_stages: PipelineStages,
+        then: AccessFlags,
+    ) -> Result<(), String> {
         let barrier = MemoryBarrier {
             src_stages: stages,
             src_access: written,
-            dst_stages: stages,
+            dst_stages: then_stages,
             dst_access: then | written,
             ..Default::default()
         };
@@ -109,15 +116,23 @@ impl FrameRecorder {
         Ok(())
     }
 
-    /// The barrier between two dispatches: the next one may read and write what this one wrote.
-    pub fn between_dispatches(&mut self) -> Result<(), String> {
-        self.barrier(PipelineStages::COMPUTE_SHADER, AccessFlags::SHADER_WRITE, AccessFlags::SHADER_READ)
+    /// The barrier between two dispatches: the next one may read and write what this one wrote,
+    /// and, in a frame with `indirect` dispatches, read its size from it.
+    pub fn between_dispatches(&mut self, indirect: bool) -> Result<(), String> {
+        let compute = PipelineStages::COMPUTE_SHADER;
+        let (stages, reads) = if indirect {
+            (compute | PipelineStages::DRAW_INDIRECT, AccessFlags::SHADER_READ | AccessFlags::INDIRECT_COMMAND_READ)
+        } else {
+            (compute, AccessFlags::SHADER_READ)
+        };
+        self.barrier(compute, AccessFlags::SHADER_WRITE, stages, reads)
     }
 
     /// Ends the command buffer after a barrier that makes its writes visible to whatever is
     /// submitted after it (read-backs, the next frame).
     pub fn end(mut self, no_resources: Arc<PrimaryAutoCommandBuffer>) -> Result<Arc<RawPrimary>, String> {
-        self.barrier(PipelineStages::ALL_COMMANDS, AccessFlags::MEMORY_WRITE, AccessFlags::MEMORY_READ)?;
+        let all = PipelineStages::ALL_COMMANDS;
+        self.barrier(all, AccessFlags::MEMORY_WRITE, all, AccessFlags::MEMORY_READ)?;
         // SAFETY: every command recorded is complete (no open render pass or query).
         let inner = unsafe { self.recording.end() }.map_err(|e| format!("ending the command buffer: {e}"))?;
         Ok(Arc::new(RawPrimary { inner, state: Mutex::new(CommandBufferState::default()), no_resources }))

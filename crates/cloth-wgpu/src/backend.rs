@@ -120,6 +120,7 @@ impl GpuBackend for WgpuBackend {
             BufferUsage::Uniform => U::UNIFORM | U::COPY_DST,
             BufferUsage::Storage => storage,
             BufferUsage::StorageDrawable => storage | U::VERTEX,
+            BufferUsage::StorageIndirect => storage | U::INDIRECT,
         };
         let device = &self.context.device;
         Ok(match &desc.contents {
@@ -262,7 +263,10 @@ impl GpuBackend for WgpuBackend {
                 }
                 let offsets = d.dynamic_offset.as_slice();
                 pass.set_bind_group(0, &frame.bind_groups[d.bind_group], offsets);
-                pass.dispatch_workgroups(d.workgroups[0], d.workgroups[1], 1);
+                match (d.indirect, frame.indirect) {
+                    (Some(offset), Some(buffer)) => pass.dispatch_workgroups_indirect(buffer, offset),
+                    _ => pass.dispatch_workgroups(d.workgroups[0], d.workgroups[1], 1),
+                }
             }
         }
         if let (Some((queries, resolved)), Some(pair)) = (&self.timer, frame.timestamps) {

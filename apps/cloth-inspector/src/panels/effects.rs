@@ -34,44 +34,29 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
     if ctx.scene.effects.contains(Effect::SelfCollision) {
         ui.separator();
         ui.strong("Self-collision: vertices closer than r push apart (F = k_s (r − d) + damping, friction μ)");
+        let spacing = spacing_of(&ctx.scene.cloth);
         let s = &mut ctx.scene.self_collision;
-        ui.horizontal(|ui| {
-            use cloth_core::self_collision::Thickness;
-            ui.label("thickness r");
-            let (mut value, spacings) = match s.thickness {
-                Thickness::Spacings(f) => (f, true),
-                Thickness::Meters(m) => (m, false),
-            };
-            let unit = if spacings { " grid spacings" } else { " m" };
-            let drag = egui::DragValue::new(&mut value).speed(0.01).suffix(unit).max_decimals(4);
-            let mut changed = ui.add(drag).on_hover_text("Vertices closer than this repel (live)").changed();
-            let mut in_spacings = spacings;
-            changed |=
-                ui.checkbox(&mut in_spacings, "in spacings").on_hover_text("Keeps its meaning at any grid").changed();
-            if changed {
-                s.thickness = match (in_spacings, spacings) {
-                    (true, true) | (false, false) => {
-                        if in_spacings {
-                            Thickness::Spacings(value)
-                        } else {
-                            Thickness::Meters(value)
-                        }
-                    }
-                    // Switching the unit keeps the thickness in metres.
-                    (true, false) => Thickness::Spacings(value / spacing_of(&ctx.scene.cloth)),
-                    (false, true) => Thickness::Meters(value * spacing_of(&ctx.scene.cloth)),
-                };
-            }
-        });
-        let s = &mut ctx.scene.self_collision;
+        grid_length(ui, "thickness r", &mut s.thickness, spacing, "Vertices closer than this repel (live)");
         quantity(ui, "stiffness k_s", &mut s.stiffness, "N/m", 1.0);
         quantity(ui, "damping c_s", &mut s.damping, "N·s/m", 0.001);
         quantity(ui, "friction μ", &mut s.friction, "", 0.01);
         quantity(ui, "speed limit s_max", &mut s.max_speed, "m/s", 0.05);
-        let mut interval = s.rebuild_interval as f64;
-        if quantity(ui, "hash rebuilt every", &mut interval, "substeps (rebuilds)", 0.1) {
-            s.rebuild_interval = interval.round().clamp(0.0, u32::MAX as f64) as u32;
-        }
+        grid_length(
+            ui,
+            "margin W",
+            &mut s.margin,
+            spacing,
+            "How far vertices may move against each other before the GPU's candidate lists are rebuilt (live)",
+        );
+        let q = cloth_core::self_collision::SelfCollisionQuantities::of(ctx.scene);
+        ui.label(format!(
+            "GPU: candidate lists checked every {} substep{} (a change of the interval rebuilds)",
+            q.check_interval,
+            if q.check_interval == 1 { "" } else { "s" }
+        ))
+        .on_hover_text(
+            "The longest interval whose worst-case motion, 2 s_max Δt a substep, takes at most half the margin",
+        );
         problems_for(ui, ctx.problems, "self_collision");
     }
     if ctx.scene.effects.contains(Effect::MovingPins) {
@@ -90,4 +75,37 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
 fn spacing_of(cloth: &cloth_core::scene::ClothSpec) -> f64 {
     let [du, dv] = cloth.spacing();
     du.max(dv)
+}
+
+/// A length that scales with the grid or is fixed (`Thickness`), edited in grid spacings or in m;
+/// switching the unit keeps the length in metres. `spacing`: the grid's larger spacing, m.
+fn grid_length(
+    ui: &mut egui::Ui,
+    label: &str,
+    length: &mut cloth_core::self_collision::Thickness,
+    spacing: f64,
+    hover: &str,
+) {
+    use cloth_core::self_collision::Thickness;
+    ui.horizontal(|ui| {
+        ui.label(label);
+        let (mut value, spacings) = match *length {
+            Thickness::Spacings(f) => (f, true),
+            Thickness::Meters(m) => (m, false),
+        };
+        let unit = if spacings { " grid spacings" } else { " m" };
+        let drag = egui::DragValue::new(&mut value).speed(0.01).suffix(unit).max_decimals(4);
+        let mut changed = ui.add(drag).on_hover_text(hover).changed();
+        let mut in_spacings = spacings;
+        changed |=
+            ui.checkbox(&mut in_spacings, "in spacings").on_hover_text("Keeps its meaning at any grid").changed();
+        if changed {
+            *length = match (in_spacings, spacings) {
+                (true, true) => Thickness::Spacings(value),
+                (false, false) => Thickness::Meters(value),
+                (true, false) => Thickness::Spacings(value / spacing),
+                (false, true) => Thickness::Meters(value * spacing),
+            };
+        }
+    });
 }
