@@ -18,14 +18,22 @@
 //      this last stage's state sticks (its tangential motion over the substep is undone)
 layout(constant_id = 101) const uint STAGE = 0u;
 
-// The binding of the mesh colliders' distance fields, which layout.glsl declares, and the first
-// of self-collision's three, which self_collision.glsl declares (placeholders without
-// SelfCollision).
+// The binding of the mesh colliders' distance fields, which layout.glsl declares.
 #define DISTANCE_FIELDS_BINDING 13
-#define SELF_COLLISION_BINDING 14
-#define SELF_COLLISION_ACCESS readonly
 #include "layout.glsl"
 #include "forces.glsl"
+
+// Self-collision's candidate lists, its hash and its control (self_hash.comp; placeholders
+// without SelfCollision).
+layout(set = 0, binding = 14, std430) readonly buffer SelfWords { uint self_words[]; };
+layout(set = 0, binding = 15, std430) readonly buffer SelfLinks { uint self_links[]; };
+layout(set = 0, binding = 16, std430) buffer SelfControlBuffer { SelfControl self_control; };
+
+// The hash's word at `at` (self_collision.glsl).
+uint link(uint at) {
+    return self_links[at];
+}
+
 #include "self_collision.glsl"
 
 // No spring list: the springs are computed from the grid (add_stencil_springs).
@@ -111,12 +119,11 @@ vec3 self_collision_force(uint i, uint vi, uint vj, vec3 x, vec3 v, float fricti
             force += self_repulsion(candidate(i, k), x, v, friction_dt);
         }
     } else {
-        FarSearch search = far_search(i, rebuild_position(i));
+        FarSearch search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
         for (uint k = 0u; k < 27u; k++) {
             FarCell cell = far_cell(search, k);
-            for (uint e = cell.first; e < cell.end; e++) {
-                uint j = far_candidate(search, cell, e);
-                if (j != NO_VERTEX) {
+            for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+                if (far_candidate(search, cell, j)) {
                     force += self_repulsion(j, x, v, friction_dt);
                 }
             }
@@ -420,6 +427,6 @@ void main() {
     vec4 moved = advance_vertex();
     if (EFFECT_SELF_COLLISION) {
         // The box of the substep's displacements, which the next check adds to its bound.
-        record_motion(moved, gl_LocalInvocationIndex);
+        record_motion(moved, gl_LocalInvocationIndex, gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x);
     }
 }

@@ -23,16 +23,17 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
     vec4 self_contact;  // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     vec4 self_hash;     // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
-    uvec4 self_table;   // buckets T; first block sum; first candidate count; blocks (cloth_gpu::layout::SelfHashTable)
+    uvec4 self_table;   // buckets T; first link; first position at the rebuild; unused (cloth_gpu::layout::SelfHashTable)
     vec4 self_lists;    // the margin less its rounding share, m; lookahead, m; substeps between checks
 } params;
 
-// cloth_gpu::layout::GpuSelfControl (128 bytes, std430): self-collision's check and the
+// cloth_gpu::layout::GpuSelfControl (2096 bytes, std430): self-collision's check and the
 // substeps share it.
 struct SelfControl {
-    uvec4 full[5];          // workgroups of count, scan, sums, scatter, candidates for a rebuild
-    uint motion_high[4];    // highest order_key of the displacements since the check, xyz (atomic)
-    uint motion_low[4];     // highest inverted key (the lowest displacement), xyz (atomic)
+    uvec4 full[2];          // workgroups of the insert and candidates passes for a rebuild
+    // MOTION_COPIES copies of the box of displacements since the check, as order keys (atomic):
+    // the highest of x, y, z at 0 to 2, the highest inverted ones (the lowest displacements) at 4 to 6.
+    uint motion[64][8];
     float bound;            // the relative motion since the rebuild, at most, m
     uint rebuilds;
     uint checks;

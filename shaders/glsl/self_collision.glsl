@@ -3,26 +3,20 @@
 // partners from each vertex's candidate list, which self_hash.comp rebuilds when the check finds
 // it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
 // that rebuild): the GLSL twin of shaders/wgsl/self_collision.wgsl. Included, after layout.glsl,
-// by the kernels that evaluate or build it, which define SELF_COLLISION_BINDING, the first of the
-// three bindings declared here (cloth_gpu::layout::SelfHashTable, GpuSelfControl), and
-// SELF_COLLISION_ACCESS (readonly, or empty for the kernels that write the table). Parameters in
-// params.self_contact, params.self_hash, params.self_table and params.self_lists
+// by the kernels that evaluate or build it, which declare self_words and self_control and define
+// link(at), which reads the hash's words (cloth_gpu::layout::SelfHashTable, GpuSelfControl).
+// Parameters in params.self_contact, params.self_hash, params.self_table and params.self_lists
 // (cloth_gpu::layout::GpuSimParams).
 
-// The hash and the candidate lists; the entries (a listed position's bits and index) and each
-// vertex's position at the rebuild; the control.
-layout(set = 0, binding = SELF_COLLISION_BINDING, std430) SELF_COLLISION_ACCESS buffer SelfWords { uint self_words[]; };
-layout(set = 0, binding = SELF_COLLISION_BINDING + 1, std430) SELF_COLLISION_ACCESS buffer SelfEntries { uvec4 self_entries[]; };
-layout(set = 0, binding = SELF_COLLISION_BINDING + 2, std430) buffer SelfControlBuffer { SelfControl self_control; };
-
-// Self-collision's prefix sum scans this many buckets a workgroup (cloth_gpu::layout::HASH_SCAN_BLOCK).
-#define HASH_SCAN_BLOCK 256u
 // The most candidates a vertex keeps (cloth_core::self_collision::LIST_CAPACITY).
 #define LIST_CAPACITY 32u
 // Grid steps along i and j within which a pair are near partners (cloth_core::self_collision::NEAR_REACH).
 #define NEAR_REACH 2
 // No vertex: the end of a search.
 #define NO_VERTEX 0xffffffffu
+// The copies of the box of displacements in self_control that the workgroups of a kernel
+// spread their atomics over (cloth_gpu::layout::MOTION_COPIES).
+#define MOTION_COPIES 64u
 
 // The hash cell holding x: floor(x / h) per axis (cloth_core::self_collision::cell_of).
 ivec3 hash_cell(vec3 x) {
@@ -37,12 +31,17 @@ uint hash_bucket(ivec3 c) {
     return h & (params.self_table.x - 1u);
 }
 
-// The first entry of bucket b (its start within its block plus the block's sum).
-uint bucket_start(uint b) {
-    if (b >= params.self_table.x) {
-        return params.vertex_count;
-    }
-    return self_words[b] + self_words[params.self_table.y + b / HASH_SCAN_BLOCK];
+// The first word of the table of heads the last rebuild filled: the rebuilds alternate between
+// two (SelfHashTable). `rebuilds`: self_control.rebuilds, read once by the caller (every
+// invocation reading it from the control's read-write buffer at every cell would all meet on one
+// uncached word).
+uint heads_of(uint rebuilds) {
+    return (rebuilds & 1u) * params.self_table.x;
+}
+
+// The vertex listed after vertex j in its bucket (NO_VERTEX: none).
+uint next_listed(uint j) {
+    return link(params.self_table.y + j);
 }
 
 // The distances from x to the low faces of its cell `base`, per axis, m (the high faces are h
@@ -85,76 +84,72 @@ uint near_partner(uint vi, uint vj, int di, int dj) {
 // How many candidates vertex i listed at the last rebuild (more than LIST_CAPACITY: its list
 // overflowed, and it reads the hash instead).
 uint candidate_count(uint i) {
-    return self_words[params.self_table.z + i];
+    return self_words[i];
 }
 
 // Vertex i's k-th candidate, in increasing index (slot-major: cloth_gpu::layout::SelfHashTable).
 uint candidate(uint i, uint k) {
-    return self_words[params.self_table.z + params.vertex_count * (k + 1u) + i];
+    return self_words[params.vertex_count * (k + 1u) + i];
 }
 
-// Where vertex i was at the last rebuild, m (after the entries in self_entries).
-vec3 rebuild_position(uint i) {
-    return uintBitsToFloat(self_entries[params.vertex_count + i].xyz);
+// Where vertex j was at the last rebuild, m (the bits of three floats in the hash's words).
+vec3 rebuild_position(uint j) {
+    uint at = params.self_table.z + 4u * j;
+    return uintBitsToFloat(uvec3(link(at), link(at + 1u), link(at + 2u)));
 }
 
 // A search of the hash for the far partners of vertex i within the window r + W of x0, its
 // position at the rebuild (far_partners, with the window as the hash's cell side): the 27 cells
-// around x0's (far_cell), each entry in reach (far_candidate). A search is two nested loops:
+// around x0's (far_cell), and the vertices each lists (far_candidate). A search is two loops:
 //   for (uint k = 0u; k < 27u; k++) {
 //       FarCell cell = far_cell(search, k);
-//       for (uint e = cell.first; e < cell.end; e++) { uint j = far_candidate(search, cell, e); ... }
+//       for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) { if (far_candidate(search, cell, j)) { ... } }
 //   }
 struct FarSearch {
-    uint i;
     // i's column and row.
     int ci;
     int cj;
     vec3 x0;
     ivec3 base;
+    // The first word of the last rebuild's table of heads (heads_of).
+    uint heads;
 };
 
-FarSearch far_search(uint i, vec3 x0) {
-    return FarSearch(i, int(i % params.grid_nx), int(i / params.grid_nx), x0, hash_cell(x0));
+FarSearch far_search(uint i, vec3 x0, uint heads) {
+    return FarSearch(int(i % params.grid_nx), int(i / params.grid_nx), x0, hash_cell(x0), heads);
 }
 
-// The entries of the k-th of the 27 cells around the search's (by z, y, x offset): none where the
-// cell does not come within the window of x0 (every vertex within it is in a cell that does).
+// The k-th of the 27 cells around the search's (by z, y, x offset) and the first vertex its
+// bucket lists: none where the cell does not come within the window of x0 (every vertex within it
+// is in a cell that does).
 struct FarCell {
     ivec3 cell;
-    uint first;
-    uint end;
+    uint head;
 };
 
 FarCell far_cell(FarSearch search, uint k) {
     ivec3 offset = ivec3(int(k % 3u) - 1, int((k / 3u) % 3u) - 1, int(k / 9u) - 1);
     ivec3 cell = search.base + offset;
     if (!hash_cell_in_reach(hash_gaps(search.x0, search.base), offset)) {
-        return FarCell(cell, 0u, 0u);
+        return FarCell(cell, NO_VERTEX);
     }
-    uint b = hash_bucket(cell);
-    return FarCell(cell, bucket_start(b), bucket_start(b + 1u));
+    return FarCell(cell, link(search.heads + hash_bucket(cell)));
 }
 
-// The vertex entry e lists, if it is a far partner of the search's vertex within the window
-// (and listed in this cell: a bucket two cells share is read once for each), else NO_VERTEX.
-// The distance first, the cheapest test that rejects most.
-uint far_candidate(FarSearch search, FarCell cell, uint e) {
-    uvec4 listed = self_entries[e];
-    vec3 x_j = uintBitsToFloat(listed.xyz);
+// Whether vertex j, listed in the cell's bucket, is a far partner of the search's vertex within
+// the window (and in this cell: a bucket two cells share lists both). The distance first, the
+// cheapest test that rejects most.
+bool far_candidate(FarSearch search, FarCell cell, uint j) {
+    vec3 x_j = rebuild_position(j);
     vec3 d = x_j - search.x0;
     float window = params.self_hash.x;
     if (dot(d, d) >= window * window) {
-        return NO_VERTEX;
+        return false;
     }
-    uint j = listed.w;
     int di = int(j % params.grid_nx) - search.ci;
     int dj = int(j / params.grid_nx) - search.cj;
     bool far = abs(di) > NEAR_REACH || abs(dj) > NEAR_REACH;
-    if (!far || hash_cell(x_j) != cell.cell || !offset_apart_at_rest(float(di), float(dj))) {
-        return NO_VERTEX;
-    }
-    return j;
+    return far && hash_cell(x_j) == cell.cell && offset_apart_at_rest(float(di), float(dj));
 }
 
 // The force on vertex i from vertex j, N: repulsion k_s (r − d) and approach damping along
@@ -236,24 +231,28 @@ void clear_motion(uint local_index) {
 }
 
 // Adds a vertex's displacement over the substep (moved.xyz, m; moved.w 0 where the invocation
-// has no vertex) to the workgroup's box, and the box to self_control's (uniform control flow).
-void record_motion(vec4 moved, uint local_index) {
+// has no vertex) to the workgroup's box, and the box to one of self_control's copies, chosen by
+// the workgroup's index `group` (uniform control flow).
+void record_motion(vec4 moved, uint local_index, uint group) {
+    // (Each atomic maximum is skipped where it would change nothing: most invocations of a
+    // cloth that moves as a whole.)
     if (moved.w != 0.0) {
-        for (uint k = 0u; k < 3u; k++) {
-            uint key = order_key(moved[k]);
-            atomicMax(motion_keys[k], key);
-            atomicMax(motion_keys[k + 3u], ~key);
+        for (uint k = 0u; k < 6u; k++) {
+            uint component = order_key(moved[k % 3u]);
+            uint key = k >= 3u ? ~component : component;
+            if (key > motion_keys[k]) {
+                atomicMax(motion_keys[k], key);
+            }
         }
     }
     barrier();
     if (local_index < 6u) {
         uint key = motion_keys[local_index];
-        if (key != 0u) {
-            if (local_index < 3u) {
-                atomicMax(self_control.motion_high[local_index], key);
-            } else {
-                atomicMax(self_control.motion_low[local_index - 3u], key);
-            }
+        // High keys at 0 to 2 of a copy, low ones at 4 to 6.
+        uint copy = group % MOTION_COPIES;
+        uint slot = local_index + local_index / 3u;
+        if (key > self_control.motion[copy][slot]) {
+            atomicMax(self_control.motion[copy][slot], key);
         }
     }
 }

@@ -4,70 +4,82 @@
 // Self-collision's check, and the rebuild of its spatial hash and candidate lists
 // (cloth_core::self_collision; cloth_gpu::layout::SelfHashTable lays the buffers out): the GLSL
 // twin of shaders/wgsl/self_hash.wgsl.
-//   5 check:      one invocation adds the box of the displacements since the last check to the
-//                 bound on the relative motion since the rebuild, and sizes the five passes
-//                 below: fully when the bound plus the lookahead reaches the margin, else zero;
-//   6 forced:     the same, always rebuilding (the first substep, a written state);
-//   0 count:      every vertex adds 1 to its bucket's count (atomic);
-//   1 scan:       each workgroup turns HASH_SCAN_BLOCK counts into exclusive prefix sums within
-//                 its block, and writes the block's total;
-//   2 sums:       one workgroup turns the block totals into exclusive prefix sums;
-//   3 scatter:    every vertex takes a slot of its bucket (counting the count back down to 0, so
-//                 the counts are zero again for the next rebuild) and writes its position and
-//                 index there;
-//   4 candidates: every vertex writes its position and lists its far partners within the window
-//                 r + W (the cell side), in increasing index.
+//   2 check:      one workgroup adds the box of the displacements since the last check to the
+//                 bound on the relative motion since the rebuild, and sizes the two passes below:
+//                 fully when the bound plus the lookahead reaches the margin (a rebuild, which
+//                 flips the table of heads the rebuild fills), else zero;
+//   3 forced:     the same, always rebuilding (the first substep, a written state);
+//   0 insert:     every vertex writes its position and pushes itself onto its bucket's list
+//                 (an atomic exchange of the bucket's head), and clears its share of the other
+//                 table of heads, the one the next rebuild fills;
+//   1 candidates: every vertex lists its far partners within the window r + W (the cell side),
+//                 in increasing index.
 
-// The workgroup is the scan's block, whatever the tuning's workgroup size; no effect or collider
-// constant applies (the parameters only, no colliders).
+// 256 invocations, whatever the tuning's workgroup size; no effect or collider constant applies
+// (the parameters only, no colliders).
 layout(local_size_x = 256) in;
 
 // The pass (see above).
 layout(constant_id = 111) const uint HASH_PASS = 0u;
 
 #define PARAMS_ONLY
-#define SELF_COLLISION_BINDING 3
-#define SELF_COLLISION_ACCESS
 #include "layout.glsl"
-#include "self_collision.glsl"
 
 // The state the rebuild lists: the positions at the start of the substep it comes before.
 layout(set = 0, binding = 1, std430) readonly buffer Positions { vec4 positions[]; };
-layout(set = 0, binding = 2, std430) buffer Counts { uint counts[]; };
+// The hash's words (the heads, the links, the positions at the rebuild), written by the insert
+// pass and read by the candidates pass: each binds the buffer at its own binding and a
+// placeholder at the other (a dispatch may not both write and read a buffer through two bindings).
+layout(set = 0, binding = 2, std430) buffer SelfLinks { uint self_links[]; };
+layout(set = 0, binding = 3, std430) readonly buffer SelfLinksRead { uint self_links_read[]; };
+layout(set = 0, binding = 4, std430) buffer SelfWords { uint self_words[]; };
+layout(set = 0, binding = 5, std430) buffer SelfControlBuffer { SelfControl self_control; };
 // The rebuild's passes' workgroups, which the check writes and their indirect dispatches read
 // (the passes themselves bind a placeholder here: cloth_gpu::layout::REBUILD_PASSES).
-layout(set = 0, binding = 6, std430) buffer SelfDispatch { uvec4 self_dispatch[5]; };
+layout(set = 0, binding = 6, std430) buffer SelfDispatch { uvec4 self_dispatch[2]; };
 
-shared uint partial[HASH_SCAN_BLOCK];
-
-// Inclusive prefix sum across the workgroup (Hillis–Steele), returned for `local`.
-uint workgroup_inclusive_scan(uint local, uint value) {
-    partial[local] = value;
-    barrier();
-    uint sum = value;
-    for (uint offset = 1u; offset < HASH_SCAN_BLOCK; offset *= 2u) {
-        uint before = local >= offset ? partial[local - offset] : 0u;
-        barrier();
-        sum += before;
-        partial[local] = sum;
-        barrier();
-    }
-    return sum;
+// The hash's word at `at`, as the candidates pass reads it (self_collision.glsl).
+uint link(uint at) {
+    return self_links_read[at];
 }
 
-// Passes 5 and 6, one invocation (cloth_core::self_collision::{MotionBound, rebuild_due}).
-void check() {
+#include "self_collision.glsl"
+
+// The reduction of the copies of the box of displacements.
+shared uint box_keys[6];
+// The rebuilds so far, read once a workgroup (the insert and candidates passes).
+shared uint rebuilds_so_far;
+
+// Passes 2 and 3, one workgroup (cloth_core::self_collision::{MotionBound, rebuild_due}): the
+// first MOTION_COPIES invocations gather the copies of the box (and clear them), the first
+// invocation decides.
+void check(uint local_index) {
+    if (local_index < 6u) {
+        box_keys[local_index] = 0u;
+    }
+    barrier();
+    if (local_index < MOTION_COPIES) {
+        for (uint k = 0u; k < 6u; k++) {
+            uint slot = k + k / 3u;
+            atomicMax(box_keys[k], self_control.motion[local_index][slot]);
+            self_control.motion[local_index][slot] = 0u;
+        }
+    }
+    barrier();
+    if (local_index != 0u) {
+        return;
+    }
     float bound = self_control.bound;
-    if (self_control.motion_high[0] != 0u) {
+    if (box_keys[0] != 0u) {
         vec3 extent;
         for (uint k = 0u; k < 3u; k++) {
-            extent[k] = from_order_key(self_control.motion_high[k]) - from_order_key(~self_control.motion_low[k]);
+            extent[k] = from_order_key(box_keys[k]) - from_order_key(~box_keys[k + 3u]);
         }
         bound += params.self_lists.z * sqrt(dot(extent, extent));
     }
     // (Written so that a bound that is not a number rebuilds.)
-    bool due = HASH_PASS == 6u || !(bound + params.self_lists.y <= params.self_lists.x);
-    for (uint k = 0u; k < 5u; k++) {
+    bool due = HASH_PASS == 3u || !(bound + params.self_lists.y <= params.self_lists.x);
+    for (uint k = 0u; k < 2u; k++) {
         self_dispatch[k] = due ? self_control.full[k] : uvec4(0u);
     }
     if (due) {
@@ -76,26 +88,38 @@ void check() {
     }
     self_control.bound = bound;
     self_control.checks += 1u;
-    for (uint k = 0u; k < 4u; k++) {
-        self_control.motion_high[k] = 0u;
-        self_control.motion_low[k] = 0u;
-    }
 }
 
-// Pass 4: vertex i's position at the rebuild, and its candidates in increasing index (an
-// insertion sort as they come); a vertex with more than LIST_CAPACITY keeps the count only, and
-// counts in self_control.overflows.
-void list_candidates(uint i) {
-    vec3 x0 = positions[i].xyz;
-    self_entries[params.vertex_count + i] = uvec4(floatBitsToUint(x0), i);
+// Pass 0: vertex i's position at the rebuild, pushed onto its bucket's list in the table of
+// heads of this rebuild (`rebuilds`: the rebuilds so far, this one counted); and its share of
+// the other table cleared.
+void insert(uint i, uint rebuilds) {
+    uint buckets = params.self_table.x;
+    uint heads = heads_of(rebuilds);
+    uint other = heads_of(rebuilds + 1u);
+    for (uint b = i; b < buckets; b += params.vertex_count) {
+        self_links[other + b] = NO_VERTEX;
+    }
+    vec3 x = positions[i].xyz;
+    uvec3 bits = floatBitsToUint(x);
+    uint at = params.self_table.z + 4u * i;
+    for (uint k = 0u; k < 3u; k++) {
+        self_links[at + k] = bits[k];
+    }
+    uint head = atomicExchange(self_links[heads + hash_bucket(hash_cell(x))], i);
+    self_links[params.self_table.y + i] = head;
+}
+
+// Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex
+// with more than LIST_CAPACITY keeps the count only, and counts in self_control.overflows.
+void list_candidates(uint i, uint rebuilds) {
     uint list[LIST_CAPACITY];
     uint count = 0u;
-    FarSearch search = far_search(i, x0);
+    FarSearch search = far_search(i, rebuild_position(i), heads_of(rebuilds));
     for (uint c = 0u; c < 27u; c++) {
         FarCell cell = far_cell(search, c);
-        for (uint e = cell.first; e < cell.end; e++) {
-            uint j = far_candidate(search, cell, e);
-            if (j == NO_VERTEX) {
+        for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+            if (!far_candidate(search, cell, j)) {
                 continue;
             }
             if (count < LIST_CAPACITY) {
@@ -110,10 +134,9 @@ void list_candidates(uint i) {
         }
     }
     uint n = params.vertex_count;
-    uint counts_at = params.self_table.z;
-    self_words[counts_at + i] = count;
+    self_words[i] = count;
     for (uint k = 0u; k < min(count, LIST_CAPACITY); k++) {
-        self_words[counts_at + n * (k + 1u) + i] = list[k];
+        self_words[n * (k + 1u) + i] = list[k];
     }
     if (count > LIST_CAPACITY) {
         atomicAdd(self_control.overflows, 1u);
@@ -121,61 +144,23 @@ void list_candidates(uint i) {
 }
 
 void main() {
-    uint local = gl_LocalInvocationIndex;
-    uint buckets = params.self_table.x;
-    uint block_sums = params.self_table.y;
-    if (HASH_PASS >= 5u) {
-        if (local == 0u) {
-            check();
-        }
+    if (HASH_PASS >= 2u) {
+        check(gl_LocalInvocationIndex);
         return;
     }
-    if (HASH_PASS == 1u) {
-        uint b = gl_WorkGroupID.x * HASH_SCAN_BLOCK + local;
-        uint count = b < buckets ? atomicAdd(counts[b], 0u) : 0u;
-        uint inclusive = workgroup_inclusive_scan(local, count);
-        if (b < buckets) {
-            self_words[b] = inclusive - count;
-        }
-        if (local == HASH_SCAN_BLOCK - 1u) {
-            self_words[block_sums + gl_WorkGroupID.x] = inclusive;
-        }
-        return;
+    if (gl_LocalInvocationIndex == 0u) {
+        rebuilds_so_far = self_control.rebuilds;
     }
-    if (HASH_PASS == 2u) {
-        // One workgroup: each invocation sums a run of consecutive blocks, the runs are scanned,
-        // and each invocation writes its run's exclusive sums.
-        uint blocks = params.self_table.w;
-        uint run = (blocks + HASH_SCAN_BLOCK - 1u) / HASH_SCAN_BLOCK;
-        uint first = local * run;
-        uint last = min(first + run, blocks);
-        uint total = 0u;
-        for (uint k = first; k < last; k++) {
-            total += self_words[block_sums + k];
-        }
-        uint running = workgroup_inclusive_scan(local, total) - total;
-        for (uint k = first; k < last; k++) {
-            uint value = self_words[block_sums + k];
-            self_words[block_sums + k] = running;
-            running += value;
-        }
-        return;
-    }
-    // Passes 0, 3 and 4: one invocation a vertex (more than 65535 workgroups spill into y).
-    uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * HASH_SCAN_BLOCK + gl_GlobalInvocationID.x;
+    barrier();
+    uint rebuilds = rebuilds_so_far;
+    // One invocation a vertex (more than maxComputeWorkGroupCount[0] workgroups spill into y).
+    uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 256u + gl_GlobalInvocationID.x;
     if (i >= params.vertex_count) {
         return;
     }
-    if (HASH_PASS == 4u) {
-        list_candidates(i);
-        return;
-    }
-    vec3 x = positions[i].xyz;
-    uint b = hash_bucket(hash_cell(x));
     if (HASH_PASS == 0u) {
-        atomicAdd(counts[b], 1u);
-        return;
+        insert(i, rebuilds);
+    } else {
+        list_candidates(i, rebuilds);
     }
-    uint slot = bucket_start(b) + atomicAdd(counts[b], 0xffffffffu) - 1u;
-    self_entries[slot] = uvec4(floatBitsToUint(x), i);
 }

@@ -19,14 +19,22 @@
 // Which pass this pipeline runs (see above).
 layout(constant_id = 101) const uint XPBD_PASS = 0u;
 
-// The binding of the mesh colliders' distance fields, which layout.glsl declares, and the first
-// of self-collision's three, which self_collision.glsl declares (placeholders without
-// SelfCollision).
+// The binding of the mesh colliders' distance fields, which layout.glsl declares.
 #define DISTANCE_FIELDS_BINDING 11
-#define SELF_COLLISION_BINDING 13
-#define SELF_COLLISION_ACCESS readonly
 #include "layout.glsl"
 #include "forces.glsl"
+
+// Self-collision's candidate lists, its hash and its control (self_hash.comp; placeholders
+// without SelfCollision).
+layout(set = 0, binding = 13, std430) readonly buffer SelfWords { uint self_words[]; };
+layout(set = 0, binding = 14, std430) readonly buffer SelfLinks { uint self_links[]; };
+layout(set = 0, binding = 15, std430) buffer SelfControlBuffer { SelfControl self_control; };
+
+// The hash's word at `at` (self_collision.glsl).
+uint link(uint at) {
+    return self_links[at];
+}
+
 #include "self_collision.glsl"
 
 layout(set = 0, binding = 2, std430) readonly buffer Constraints { Constraint constraints[]; };
@@ -126,12 +134,11 @@ void self_contacts(uint i) {
             sum += self_contact_with(candidate(i, k), x, x0, w);
         }
     } else {
-        FarSearch search = far_search(i, rebuild_position(i));
+        FarSearch search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
         for (uint k = 0u; k < 27u; k++) {
             FarCell cell = far_cell(search, k);
-            for (uint e = cell.first; e < cell.end; e++) {
-                uint j = far_candidate(search, cell, e);
-                if (j != NO_VERTEX) {
+            for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+                if (far_candidate(search, cell, j)) {
                     sum += self_contact_with(j, x, x0, w);
                 }
             }
@@ -415,6 +422,6 @@ void main() {
     vec4 moved = run_pass();
     if (EFFECT_SELF_COLLISION && XPBD_PASS == 3u) {
         // The box of the substep's displacements, which the next check adds to its bound.
-        record_motion(moved, gl_LocalInvocationIndex);
+        record_motion(moved, gl_LocalInvocationIndex, gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x);
     }
 }

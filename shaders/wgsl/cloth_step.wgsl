@@ -41,11 +41,16 @@ override STAGE: u32 = 0u;
 @group(0) @binding(12) var<storage, read> pin_bits: array<u32>;
 // The mesh colliders' distance fields (colliders.wgsl), m.
 @group(0) @binding(13) var<storage, read> distance_fields: array<f32>;
-// Self-collision's hash and candidate lists, its entries and its control (self_hash.wgsl;
-// placeholders without SelfCollision).
+// Self-collision's candidate lists, its hash and its control (self_hash.wgsl; placeholders
+// without SelfCollision).
 @group(0) @binding(14) var<storage, read> self_words: array<u32>;
-@group(0) @binding(15) var<storage, read> self_entries: array<vec4<u32>>;
+@group(0) @binding(15) var<storage, read> self_links: array<u32>;
 @group(0) @binding(16) var<storage, read_write> self_control: SelfControl;
+
+// The hash's word at `at` (self_collision.wgsl).
+fn link(at: u32) -> u32 {
+    return self_links[at];
+}
 // 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
 override PACKED_IN: u32 = 0u;
 override PACKED_OUT: u32 = 0u;
@@ -165,12 +170,11 @@ fn self_collision_force(i: u32, vi: u32, vj: u32, x: vec3<f32>, v: vec3<f32>, fr
             force += self_repulsion(candidate(i, k), x, v, friction_dt);
         }
     } else {
-        let search = far_search(i, rebuild_position(i));
+        let search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
         for (var k = 0u; k < 27u; k++) {
             let cell = far_cell(search, k);
-            for (var e = cell.first; e < cell.end; e++) {
-                let j = far_candidate(search, cell, e);
-                if (j != NO_VERTEX) {
+            for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+                if (far_candidate(search, cell, j)) {
                     force += self_repulsion(j, x, v, friction_dt);
                 }
             }
@@ -198,7 +202,7 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     let moved = advance_vertex(id, groups, group, local);
     if (EFFECT_SELF_COLLISION) {
         // The box of the substep's displacements, which the next check adds to its bound.
-        record_motion(moved, local);
+        record_motion(moved, local, group.y * groups.x + group.x);
     }
 }
 

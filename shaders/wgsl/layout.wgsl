@@ -23,7 +23,7 @@ struct SimParams {
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
     self_contact: vec4<f32>, // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     self_hash: vec4<f32>,    // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
-    self_table: vec4<u32>,   // buckets T; first block sum; first candidate count; blocks (cloth_gpu::layout::SelfHashTable)
+    self_table: vec4<u32>,   // buckets T; first link; first position at the rebuild; unused (cloth_gpu::layout::SelfHashTable)
     self_lists: vec4<f32>,   // the margin less its rounding share, m; lookahead, m; substeps between checks
 }
 
@@ -72,12 +72,13 @@ struct ColorRange {
     pad: u32,
 }
 
-// cloth_gpu::layout::GpuSelfControl (128 bytes): self-collision's check and the substeps share
+// cloth_gpu::layout::GpuSelfControl (2096 bytes): self-collision's check and the substeps share
 // it.
 struct SelfControl {
-    full: array<vec4<u32>, 5>,              // workgroups of count, scan, sums, scatter, candidates for a rebuild
-    motion_high: array<atomic<u32>, 4>,     // highest order_key of the displacements since the check, xyz
-    motion_low: array<atomic<u32>, 4>,      // highest inverted key (the lowest displacement), xyz
+    full: array<vec4<u32>, 2>,              // workgroups of the insert and candidates passes for a rebuild
+    // MOTION_COPIES copies of the box of displacements since the check, as order keys: the
+    // highest of x, y, z at 0 to 2, the highest inverted ones (the lowest displacements) at 4 to 6.
+    motion: array<array<atomic<u32>, 8>, 64>,
     bound: f32,                             // the relative motion since the rebuild, at most, m
     rebuilds: u32,
     checks: u32,

@@ -3,12 +3,10 @@
 // partners from each vertex's candidate list, which self_hash.wgsl rebuilds when the check finds
 // it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
 // that rebuild). Prepended, after common.wgsl, to the kernels that evaluate or build it, each of
-// which declares self_words, self_entries and self_control (cloth_gpu::layout::SelfHashTable,
-// GpuSelfControl). Parameters in params.self_contact, params.self_hash, params.self_table and
-// params.self_lists (cloth_gpu::layout::GpuSimParams).
+// which declares self_words and self_control and defines link(at), which reads the hash's words
+// (cloth_gpu::layout::SelfHashTable, GpuSelfControl). Parameters in params.self_contact,
+// params.self_hash, params.self_table and params.self_lists (cloth_gpu::layout::GpuSimParams).
 
-// Self-collision's prefix sum scans this many buckets a workgroup (cloth_gpu::layout::HASH_SCAN_BLOCK).
-const HASH_SCAN_BLOCK: u32 = 256u;
 // The most candidates a vertex keeps (cloth_core::self_collision::LIST_CAPACITY).
 const LIST_CAPACITY: u32 = 32u;
 // Grid steps along i and j within which a pair are near partners (cloth_core::self_collision::NEAR_REACH).
@@ -29,12 +27,17 @@ fn hash_bucket(c: vec3<i32>) -> u32 {
     return h & (params.self_table.x - 1u);
 }
 
-// The first entry of bucket b (its start within its block plus the block's sum).
-fn bucket_start(b: u32) -> u32 {
-    if (b >= params.self_table.x) {
-        return params.vertex_count;
-    }
-    return self_words[b] + self_words[params.self_table.y + b / HASH_SCAN_BLOCK];
+// The first word of the table of heads the last rebuild filled: the rebuilds alternate between
+// two (SelfHashTable). `rebuilds`: self_control.rebuilds, read once by the caller (every
+// invocation reading it from the control's read-write buffer at every cell would all meet on one
+// uncached word).
+fn heads_of(rebuilds: u32) -> u32 {
+    return (rebuilds & 1u) * params.self_table.x;
+}
+
+// The vertex listed after vertex j in its bucket (NO_VERTEX: none).
+fn next_listed(j: u32) -> u32 {
+    return link(params.self_table.y + j);
 }
 
 // The distances from x to the low and the high faces of its cell `base`, per axis, m: how far
@@ -84,76 +87,72 @@ fn near_partner(vi: u32, vj: u32, di: i32, dj: i32) -> u32 {
 // How many candidates vertex i listed at the last rebuild (more than LIST_CAPACITY: its list
 // overflowed, and it reads the hash instead).
 fn candidate_count(i: u32) -> u32 {
-    return self_words[params.self_table.z + i];
+    return self_words[i];
 }
 
 // Vertex i's k-th candidate, in increasing index (slot-major: cloth_gpu::layout::SelfHashTable).
 fn candidate(i: u32, k: u32) -> u32 {
-    return self_words[params.self_table.z + params.vertex_count * (k + 1u) + i];
+    return self_words[params.vertex_count * (k + 1u) + i];
 }
 
-// Where vertex i was at the last rebuild, m (after the entries in self_entries).
-fn rebuild_position(i: u32) -> vec3<f32> {
-    return bitcast<vec3<f32>>(self_entries[params.vertex_count + i].xyz);
+// Where vertex j was at the last rebuild, m (the bits of three f32 in the hash's words).
+fn rebuild_position(j: u32) -> vec3<f32> {
+    let at = params.self_table.z + 4u * j;
+    return bitcast<vec3<f32>>(vec3<u32>(link(at), link(at + 1u), link(at + 2u)));
 }
 
 // A search of the hash for the far partners of vertex i within the window r + W of x0, its
 // position at the rebuild (far_partners, with the window as the hash's cell side): the 27 cells
-// around x0's (far_cell), each entry in reach (far_candidate). A search is two nested loops:
+// around x0's (far_cell), and the vertices each lists (far_candidate). A search is two loops:
 //   for (var k = 0u; k < 27u; k++) {
 //       let cell = far_cell(search, k);
-//       for (var e = cell.first; e < cell.end; e++) { let j = far_candidate(search, cell, e); ... }
+//       for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) { if (far_candidate(search, cell, j)) { ... } }
 //   }
 struct FarSearch {
-    i: u32,
     // i's column and row.
     ci: i32,
     cj: i32,
     x0: vec3<f32>,
     base: vec3<i32>,
+    // The first word of the last rebuild's table of heads (heads_of).
+    heads: u32,
 }
 
-fn far_search(i: u32, x0: vec3<f32>) -> FarSearch {
-    return FarSearch(i, i32(i % params.grid_nx), i32(i / params.grid_nx), x0, hash_cell(x0));
+fn far_search(i: u32, x0: vec3<f32>, heads: u32) -> FarSearch {
+    return FarSearch(i32(i % params.grid_nx), i32(i / params.grid_nx), x0, hash_cell(x0), heads);
 }
 
-// The entries of the k-th of the 27 cells around the search's (by z, y, x offset): none where the
-// cell does not come within the window of x0 (every vertex within it is in a cell that does).
+// The k-th of the 27 cells around the search's (by z, y, x offset) and the first vertex its
+// bucket lists: none where the cell does not come within the window of x0 (every vertex within it
+// is in a cell that does).
 struct FarCell {
     cell: vec3<i32>,
-    first: u32,
-    end: u32,
+    head: u32,
 }
 
 fn far_cell(search: FarSearch, k: u32) -> FarCell {
     let offset = vec3<i32>(i32(k % 3u) - 1, i32((k / 3u) % 3u) - 1, i32(k / 9u) - 1);
     let cell = search.base + offset;
     if (!hash_cell_in_reach(hash_gaps(search.x0, search.base), offset)) {
-        return FarCell(cell, 0u, 0u);
+        return FarCell(cell, NO_VERTEX);
     }
-    let b = hash_bucket(cell);
-    return FarCell(cell, bucket_start(b), bucket_start(b + 1u));
+    return FarCell(cell, link(search.heads + hash_bucket(cell)));
 }
 
-// The vertex entry e lists, if it is a far partner of the search's vertex within the window
-// (and listed in this cell: a bucket two cells share is read once for each), else NO_VERTEX.
-// The distance first, the cheapest test that rejects most.
-fn far_candidate(search: FarSearch, cell: FarCell, e: u32) -> u32 {
-    let listed = self_entries[e];
-    let x_j = bitcast<vec3<f32>>(listed.xyz);
+// Whether vertex j, listed in the cell's bucket, is a far partner of the search's vertex within
+// the window (and in this cell: a bucket two cells share lists both). The distance first, the
+// cheapest test that rejects most.
+fn far_candidate(search: FarSearch, cell: FarCell, j: u32) -> bool {
+    let x_j = rebuild_position(j);
     let d = x_j - search.x0;
     let window = params.self_hash.x;
     if (dot(d, d) >= window * window) {
-        return NO_VERTEX;
+        return false;
     }
-    let j = listed.w;
     let di = i32(j % params.grid_nx) - search.ci;
     let dj = i32(j / params.grid_nx) - search.cj;
     let far = (abs(di) > NEAR_REACH) | (abs(dj) > NEAR_REACH);
-    if (!(far & all(hash_cell(x_j) == cell.cell) & offset_apart_at_rest(f32(di), f32(dj)))) {
-        return NO_VERTEX;
-    }
-    return j;
+    return far & all(hash_cell(x_j) == cell.cell) & offset_apart_at_rest(f32(di), f32(dj));
 }
 
 // The force on vertex i from vertex j, N: repulsion k_s (r − d) and approach damping along
@@ -224,6 +223,10 @@ fn from_order_key(key: u32) -> f32 {
     return bitcast<f32>(select(~key, key & 0x7fffffffu, (key & 0x80000000u) != 0u));
 }
 
+// The copies of the box of displacements in self_control that the workgroups of a kernel
+// spread their atomics over (cloth_gpu::layout::MOTION_COPIES).
+const MOTION_COPIES: u32 = 64u;
+
 // The workgroup's box of displacements, as keys: x, y, z highest, then x, y, z lowest (inverted).
 var<workgroup> motion_keys: array<atomic<u32>, 6>;
 
@@ -236,24 +239,27 @@ fn clear_motion(local: u32) {
 }
 
 // Adds a vertex's displacement over the substep (moved.xyz, m; moved.w 0 where the invocation
-// has no vertex) to the workgroup's box, and the box to self_control's (uniform control flow).
-fn record_motion(moved: vec4<f32>, local: u32) {
+// has no vertex) to the workgroup's box, and the box to one of self_control's copies, chosen by
+// the workgroup's index `group` (uniform control flow).
+fn record_motion(moved: vec4<f32>, local: u32, group: u32) {
+    // (Each atomic maximum is skipped where it would change nothing: most invocations of a
+    // cloth that moves as a whole.)
     if (moved.w != 0.0) {
-        for (var k = 0u; k < 3u; k++) {
-            let key = order_key(moved[k]);
-            atomicMax(&motion_keys[k], key);
-            atomicMax(&motion_keys[k + 3u], ~key);
+        for (var k = 0u; k < 6u; k++) {
+            let component = order_key(moved[k % 3u]);
+            let key = select(component, ~component, k >= 3u);
+            if (key > atomicLoad(&motion_keys[k])) {
+                atomicMax(&motion_keys[k], key);
+            }
         }
     }
     workgroupBarrier();
     if (local < 6u) {
         let key = atomicLoad(&motion_keys[local]);
-        if (key != 0u) {
-            if (local < 3u) {
-                atomicMax(&self_control.motion_high[local], key);
-            } else {
-                atomicMax(&self_control.motion_low[local - 3u], key);
-            }
+        // High keys at 0 to 2 of a copy, low ones at 4 to 6.
+        let slot = &self_control.motion[group % MOTION_COPIES][local + local / 3u];
+        if (key > atomicLoad(slot)) {
+            atomicMax(slot, key);
         }
     }
 }

@@ -44,12 +44,17 @@ fn position_in(index: u32) -> vec3<f32> {
 // The mesh colliders' distance fields (colliders.wgsl), m.
 @group(0) @binding(11) var<storage, read> distance_fields: array<f32>;
 // Each vertex's averaged self-contact correction of the current iteration, m; self-collision's
-// hash and candidate lists, its entries and its control (self_hash.wgsl; placeholders without
+// candidate lists, its hash and its control (self_hash.wgsl; placeholders without
 // SelfCollision).
 @group(0) @binding(12) var<storage, read_write> self_corrections: array<vec4<f32>>;
 @group(0) @binding(13) var<storage, read> self_words: array<u32>;
-@group(0) @binding(14) var<storage, read> self_entries: array<vec4<u32>>;
+@group(0) @binding(14) var<storage, read> self_links: array<u32>;
 @group(0) @binding(15) var<storage, read_write> self_control: SelfControl;
+
+// The hash's word at `at` (self_collision.wgsl).
+fn link(at: u32) -> u32 {
+    return self_links[at];
+}
 
 // XPBD's correction of free vertex i (inverse mass w_i) for its contact with vertex j (w_j, 0
 // when pinned), m, and whether they touch (cloth_core::self_collision::self_contact_correction):
@@ -116,12 +121,11 @@ fn self_contacts(i: u32) {
             sum += self_contact_with(candidate(i, k), x, x0, w);
         }
     } else {
-        let search = far_search(i, rebuild_position(i));
+        let search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
         for (var k = 0u; k < 27u; k++) {
             let cell = far_cell(search, k);
-            for (var e = cell.first; e < cell.end; e++) {
-                let j = far_candidate(search, cell, e);
-                if (j != NO_VERTEX) {
+            for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+                if (far_candidate(search, cell, j)) {
                     sum += self_contact_with(j, x, x0, w);
                 }
             }
@@ -388,7 +392,7 @@ fn finish(i: u32) -> vec4<f32> {
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
-        @builtin(local_invocation_index) local: u32) {
+        @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
     // (The conditions written out, not kept in a variable: a constant condition compiles the
     // branch out.)
     if (EFFECT_SELF_COLLISION & (XPBD_PASS == 3u)) {
@@ -397,7 +401,7 @@ fn xpbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     let moved = run_pass(id, groups);
     if (EFFECT_SELF_COLLISION & (XPBD_PASS == 3u)) {
         // The box of the substep's displacements, which the next check adds to its bound.
-        record_motion(moved, local);
+        record_motion(moved, local, group.y * groups.x + group.x);
     }
 }
 

@@ -270,19 +270,31 @@ fn every_constant_the_plan_sets_is_declared_by_its_module() {
     assert!(checked > 100, "{checked}");
 }
 
-/// The WGSL modules that evaluate or build self-collision's hash scan its buckets in blocks of
-/// `cloth_gpu::layout::HASH_SCAN_BLOCK`, where the host puts the block sums.
+/// The WGSL modules that evaluate or build self-collision declare its constants as the host
+/// sizes and lays out their buffers: the lists' capacity, the near partners' reach and the copies
+/// of the box of displacements.
 #[test]
-fn the_hash_scans_blocks_of_the_size_the_host_lays_out() {
+fn self_collision_constants_are_the_hosts() {
+    let expected = [
+        ("LIST_CAPACITY", cloth_gpu::layout::LIST_CAPACITY as i64),
+        ("NEAR_REACH", cloth_core::self_collision::NEAR_REACH as i64),
+        ("MOTION_COPIES", cloth_gpu::layout::MOTION_COPIES as i64),
+    ];
+    let mut checked = 0;
     for (file, source) in wgsl_modules().into_iter().filter(|(f, _)| !f.starts_with("render") && !f.contains("tiled")) {
         let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{file}: {e}"));
-        let (_, constant) = (module.constants.iter())
-            .find(|(_, c)| c.name.as_deref() == Some("HASH_SCAN_BLOCK"))
-            .unwrap_or_else(|| panic!("{file}: no HASH_SCAN_BLOCK"));
-        let value = match module.global_expressions[constant.init] {
-            naga::Expression::Literal(naga::Literal::U32(n)) => n,
-            ref other => panic!("{file}: HASH_SCAN_BLOCK is {other:?}"),
-        };
-        assert_eq!(value, cloth_gpu::layout::HASH_SCAN_BLOCK, "{file}: HASH_SCAN_BLOCK");
+        for (name, value) in expected {
+            let (_, constant) = (module.constants.iter())
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("{file}: no {name}"));
+            let declared = match module.global_expressions[constant.init] {
+                naga::Expression::Literal(naga::Literal::U32(n)) => n as i64,
+                naga::Expression::Literal(naga::Literal::I32(n)) => n as i64,
+                ref other => panic!("{file}: {name} is {other:?}"),
+            };
+            assert_eq!(declared, value, "{file}: {name}");
+            checked += 1;
+        }
     }
+    assert_eq!(checked, 9, "three modules, three constants");
 }

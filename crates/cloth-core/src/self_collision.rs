@@ -69,8 +69,9 @@
 //! `C` is the longest interval (at most [`MAX_CHECK_INTERVAL`]) whose lookahead `L` takes at
 //! most half the margin, so a cloth that moves as a whole, falling or swinging, is rebuilt rarely;
 //! a cloth whose parts move against each other is rebuilt as often as that motion uses up `W`.
-//! The hash of a rebuild is a table of `T` buckets (a power of two at least the vertex count),
-//! filled by counting sort: counts per bucket, an exclusive prefix sum, a scatter.
+//! The hash of a rebuild has `T` buckets (a power of two at least the vertex count), each a list
+//! of the vertices whose cell falls in it (on the GPU, linked by an atomic exchange of the
+//! bucket's head; here, [`CellHash`], sorted by counting).
 
 use serde::{Deserialize, Serialize};
 
@@ -460,8 +461,8 @@ pub fn bucket_of(c: [i32; 3], buckets: u32) -> u32 {
     h & (buckets - 1)
 }
 
-/// A spatial hash of the cloth's vertices: the table the GPU builds at a rebuild, filled here by
-/// the same counting sort (entries of a bucket in vertex order).
+/// A spatial hash of the cloth's vertices: each bucket's vertices (in vertex order), sorted into
+/// buckets by counting (counts per bucket, an exclusive prefix sum, a scatter).
 #[derive(Clone, Debug, Default)]
 pub struct CellHash {
     /// Cell side `h`, m.

@@ -30,9 +30,16 @@ macro_rules! gpu_struct {
     ($(#[$meta:meta])* $name:ident as $shader:literal { $($(#[$field_meta:meta])* $field:ident: $ty:ty,)* }) => {
         $(#[$meta])*
         #[repr(C)]
-        #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+        #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
         pub struct $name {
             $($(#[$field_meta])* pub $field: $ty,)*
+        }
+
+        /// Every field zero (arrays of any length, which `derive(Default)` does not reach).
+        impl Default for $name {
+            fn default() -> Self {
+                Zeroable::zeroed()
+            }
         }
 
         impl $name {
@@ -92,9 +99,8 @@ gpu_struct! {
         /// Self-collision: the candidate window `r + W`, the cell side of the hash, m; the speed
         /// limit `s_max`, m/s; the grid spacing along u and v, m (the rest-distance filter).
         self_hash: [f32; 4],
-        /// The hash table and candidate lists in their buffer ([`SelfHashTable`]): buckets `T`,
-        /// the index of the first block sum, the index of the first candidate count, the number
-        /// of blocks.
+        /// The hash in its buffer ([`SelfHashTable`]): buckets `T`, the index of the first link,
+        /// the index of the first position at the rebuild; unused.
         self_table: [u32; 4],
         /// Self-collision's checks: the margin less its rounding share, `(1 − 2⁻¹⁰) W`, m; the
         /// lookahead `L`, m; the substeps between two checks `C` (`cloth_core::self_collision`);
@@ -106,52 +112,52 @@ gpu_struct! {
 /// `vec4`s a pin group's motion takes in [`GpuSimParams::pin_motion`].
 pub const PIN_MOTION_WORDS: usize = 4;
 
-/// Buckets a workgroup of the hash's prefix sum scans (`shaders/*/self_hash.*`).
-pub const HASH_SCAN_BLOCK: u32 = 256;
-
-/// Where self-collision's spatial hash and candidate lists live in their `u32` buffer (the
-/// "words"): `T` bucket starts (each relative to its block), one sum per block of
-/// [`HASH_SCAN_BLOCK`] buckets (made absolute by the second scan), one candidate count a vertex,
-/// then [`LIST_CAPACITY`] candidate slots a vertex, slot-major (slot `k` of vertex `i` at
-/// `lists + k n + i`, so the invocations of a workgroup read consecutive words). A bucket's
-/// entries start at `start[b] + block_sum[b / 256]`. The entries themselves are in a `vec4<u32>`
-/// buffer of `2 n`: entry `e` is the listed vertex's position at the rebuild (the bits of three
-/// `f32`, m) and its index; after the `n` entries, each vertex's own position at the rebuild.
+/// Where self-collision's candidate lists and spatial hash live.
+///
+/// The candidate lists, a `u32` buffer (the "words"): one candidate count a vertex, then
+/// [`LIST_CAPACITY`] candidate slots a vertex, slot-major (slot `k` of vertex `i` at
+/// `n (k + 1) + i`, so the invocations of a workgroup read consecutive words).
+///
+/// The hash, a `u32` buffer (the "links"): two tables of `T` bucket heads (the rebuilds alternate
+/// between them: rebuild `m` fills table `m mod 2` and clears the other for the next), then one
+/// link a vertex (the vertex listed after it in its bucket), then each vertex's position at the
+/// rebuild (the bits of three `f32`, m, and one unused word). A bucket lists its vertices from its
+/// head through the links; `u32::MAX` ends a list.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SelfHashTable {
     /// Buckets `T`.
     pub buckets: u32,
-    /// Blocks of the prefix sum, `⌈T / 256⌉`.
-    pub blocks: u32,
-    /// Index of the first block sum.
-    pub block_sums: u32,
-    /// Index of the first vertex's candidate count.
-    pub counts: u32,
-    /// Index of the first candidate slot.
-    pub lists: u64,
-    /// Words of the buffer.
-    pub words: u64,
-    /// `vec4<u32>`s of the entry buffer, `2 n`.
-    pub entries: u64,
+    /// Index of the first link.
+    pub links: u32,
+    /// Index of the first position at the rebuild (a multiple of 4: 16-byte aligned).
+    pub positions: u32,
+    /// Words of the hash.
+    pub link_words: u64,
+    /// Words of the candidate lists.
+    pub list_words: u64,
 }
 
 impl SelfHashTable {
-    /// The table and lists of `scene`'s vertices.
+    /// The hash and lists of `scene`'s vertices.
     pub fn of(scene: &Scene) -> Self {
-        let buckets = cloth_core::self_collision::SelfCollisionQuantities::of(scene).buckets;
-        let blocks = buckets.div_ceil(HASH_SCAN_BLOCK);
-        let n = scene.vertex_count() as u64;
-        let counts = buckets + blocks;
-        let lists = counts as u64 + n;
+        let buckets = cloth_core::self_collision::SelfCollisionQuantities::of(scene).buckets.max(4);
+        let n = scene.vertex_count() as u32;
+        let links = 2 * buckets;
+        let positions = (links + n).next_multiple_of(4);
         Self {
             buckets,
-            blocks,
-            block_sums: buckets,
-            counts,
-            lists,
-            words: lists + LIST_CAPACITY as u64 * n,
-            entries: 2 * n,
+            links,
+            positions,
+            link_words: positions as u64 + 4 * n as u64,
+            list_words: (1 + LIST_CAPACITY as u64) * n as u64,
         }
+    }
+
+    /// The hash's initial words: every head empty (`u32::MAX`), the rest zero.
+    pub fn initial_links(&self) -> Vec<u32> {
+        let mut words = vec![0; self.link_words as usize];
+        words[..self.links as usize].fill(u32::MAX);
+        words
     }
 }
 
@@ -159,28 +165,32 @@ impl SelfHashTable {
 pub const LIST_CAPACITY: u32 = cloth_core::self_collision::LIST_CAPACITY;
 
 /// The passes that rebuild the hash and the candidate lists, in order, each an indirect
-/// dispatch: count, scan, sums, scatter, candidates. The check writes their workgroups
-/// `(x, y, z, unused)` into a buffer of their own, [`REBUILD_PASSES`] `uvec4`s, which only the
-/// check binds (a dispatch may not read its size from a buffer it binds for writing).
-pub const REBUILD_PASSES: usize = 5;
+/// dispatch: insert, candidates. The check writes their workgroups `(x, y, z, unused)` into a
+/// buffer of their own, [`REBUILD_PASSES`] `uvec4`s, which only the check binds (a dispatch may
+/// not read its size from a buffer it binds for writing).
+pub const REBUILD_PASSES: usize = 2;
+
+/// The copies of the box of displacements in [`GpuSelfControl::motion`]: each workgroup of a
+/// substep's kernel raises the keys of copy `workgroup mod MOTION_COPIES`, so that the atomics of
+/// thousands of workgroups do not all meet on six words.
+pub const MOTION_COPIES: usize = 64;
 
 gpu_struct! {
-    /// What self-collision's check and the substeps share on the GPU (128 bytes, one storage
-    /// buffer): the bound on the cloth's relative motion since the last rebuild, and the counters
-    /// a test or a report reads.
+    /// What self-collision's check and the substeps share on the GPU (2096 bytes, one storage
+    /// buffer): the box of the displacements since the last check, the bound on the cloth's
+    /// relative motion since the last rebuild, and the counters a test or a report reads.
     GpuSelfControl as "SelfControl" {
         /// The rebuild passes' workgroups `(x, y, z, unused)` for a rebuild, in
         /// [`REBUILD_PASSES`] order (the plan's): the check copies them to the dispatch buffer
         /// when a rebuild is due, and zeros otherwise.
         full: [[u32; 4]; REBUILD_PASSES],
-        /// The largest [`cloth_core::self_collision::order_key`] of each displacement component
-        /// since the last check (x, y, z; w unused), 0 when none was recorded.
-        motion_high: [u32; 4],
-        /// The largest inverted key, which is the smallest component.
-        motion_low: [u32; 4],
+        /// [`MOTION_COPIES`] copies of the box of the displacements since the last check, as
+        /// [`cloth_core::self_collision::order_key`]s: the largest key of x, y, z at 0 to 2, the
+        /// largest inverted key (the smallest displacement) at 4 to 6; 0: none recorded.
+        motion: [[u32; 8]; MOTION_COPIES],
         /// The bound `B` on the relative motion since the last rebuild, m.
         bound: f32,
-        /// Rebuilds so far.
+        /// Rebuilds so far (its parity says which table of heads the last one filled).
         rebuilds: u32,
         /// Checks so far.
         checks: u32,
@@ -328,7 +338,7 @@ impl GpuSimParams {
             rest_lengths: v4(q.rest_lengths, 0.0),
             self_contact: [f(s.thickness), f(s.stiffness), f(s.damping), f(s.friction)],
             self_hash: [f(s.window), f(s.max_speed), f(s.spacing[0]), f(s.spacing[1])],
-            self_table: [table.buckets, table.block_sums, table.counts, table.blocks],
+            self_table: [table.buckets, table.links, table.positions, 0],
             self_lists: [
                 f(s.margin * (1.0 - cloth_core::self_collision::MARGIN_ROUNDING)),
                 f(s.lookahead),

@@ -20,8 +20,8 @@ impl MemoryEstimate {
     /// velocities, 16 bytes a vertex each); RK4's scratch (four `vec4`s a vertex) and stage
     /// state; Verlet's half-step velocities; semi-implicit Euler's two packed states and pin
     /// bits (not with self-collision, which runs on the `vec4` state); XPBD's constraints (16
-    /// bytes), multipliers (4) and normal corrections; self-collision's bucket counts, hash table
-    /// and candidate lists, entries, control and (XPBD) corrections; colliders, the meshes' distance fields and parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
+    /// bytes), multipliers (4) and normal corrections; self-collision's candidate lists, hash,
+    /// control and (XPBD) corrections; colliders, the meshes' distance fields and parameters. Computed in `u128`, so a mistyped resolution gives a huge estimate, not an
     /// overflow.
     pub fn of(scene: &Scene) -> Self {
         let [nx, ny] = scene.cloth.resolution.map(u128::from);
@@ -54,14 +54,13 @@ impl MemoryEstimate {
         let control = size_of::<crate::layout::GpuSelfControl>() as u128;
         let (hash, hash_largest) = if self_collision {
             let table = crate::layout::SelfHashTable::of(scene);
-            let (words, entries) = (4 * table.words as u128, 16 * table.entries as u128);
-            // The rebuild's workgroups and their placeholder.
-            let dispatch = 2 * (crate::layout::REBUILD_PASSES * 16) as u128;
-            let bytes =
-                4 * table.buckets as u128 + words + entries + control + dispatch + if xpbd { 16 * vertices } else { 0 };
-            (bytes, words.max(entries).max(control))
+            let (lists, links) = (4 * table.list_words as u128, 4 * table.link_words as u128);
+            // The rebuild's workgroups, and three placeholders of their size.
+            let dispatch = 4 * (crate::layout::REBUILD_PASSES * 16) as u128;
+            let bytes = lists + links + control + dispatch + if xpbd { 16 * vertices } else { 0 };
+            (bytes, lists.max(links).max(control))
         } else {
-            (48 + control + if xpbd { 16 } else { 0 }, control)
+            (32 + control + if xpbd { 16 } else { 0 }, control)
         };
         let params = size_of::<crate::layout::GpuSimParams>() as u128;
         let clamp = |b: u128| u64::try_from(b).unwrap_or(u64::MAX);

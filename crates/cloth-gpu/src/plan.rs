@@ -10,8 +10,8 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
-    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, HASH_SCAN_BLOCK,
-    MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
+    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, MAX_COLLIDERS,
+    REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
 use crate::tuning::{GpuTuning, invalid};
@@ -80,7 +80,7 @@ pub enum Shader {
     /// `copy`: the copy kernel that measures the memory bandwidth ([`crate::bandwidth`]).
     Copy,
     /// `self_hash`: self-collision's check and the passes that rebuild its spatial hash and
-    /// candidate lists.
+    /// candidate lists ([`HashPass`]).
     SelfHash,
 }
 
@@ -178,39 +178,32 @@ impl Constant {
 /// The passes of `self_hash`, the value of its [`Constant::HashPass`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HashPass {
-    /// Every vertex adds 1 to its bucket's count.
-    Count = 0,
-    /// Exclusive prefix sums of the counts within blocks of [`HASH_SCAN_BLOCK`].
-    Scan = 1,
-    /// Exclusive prefix sums of the blocks' totals (one workgroup).
-    Sums = 2,
-    /// Every vertex takes a slot of its bucket and writes its entry.
-    Scatter = 3,
+    /// Every vertex pushes itself onto its bucket's list.
+    Insert = 0,
     /// Every vertex lists its candidates.
-    Candidates = 4,
+    Candidates = 1,
     /// The check: sizes the rebuild's dispatches, full when a rebuild is due, zero otherwise.
-    Check = 5,
+    Check = 2,
     /// The check that always rebuilds.
-    ForcedCheck = 6,
+    ForcedCheck = 3,
 }
 
 impl HashPass {
     /// The rebuild's passes, in order ([`REBUILD_PASSES`]).
-    pub const REBUILD: [HashPass; REBUILD_PASSES] =
-        [HashPass::Count, HashPass::Scan, HashPass::Sums, HashPass::Scatter, HashPass::Candidates];
+    pub const REBUILD: [HashPass; REBUILD_PASSES] = [HashPass::Insert, HashPass::Candidates];
 
     fn label(self) -> &'static str {
         match self {
-            HashPass::Count => "count",
-            HashPass::Scan => "scan",
-            HashPass::Sums => "sums",
-            HashPass::Scatter => "scatter",
+            HashPass::Insert => "insert",
             HashPass::Candidates => "candidates",
             HashPass::Check => "check",
             HashPass::ForcedCheck => "forced check",
         }
     }
 }
+
+/// Invocations of a workgroup of `self_hash`, whatever the tuning's workgroup size.
+pub const SELF_HASH_WORKGROUP: u32 = 256;
 
 /// GLSL `constant_id` of the first collider kind's constant (`COLLIDER_SPHERE`; the others follow
 /// in `ColliderKind::ALL` order).
@@ -304,15 +297,16 @@ const STEP_EXTRA_BINDINGS: [Binding; 6] = [WRITE, READ, READ, WRITE, WRITE, READ
 /// 13 of `cloth_step`.
 const DISTANCE_FIELDS: Binding = READ;
 
-/// Self-collision's buffers as the force kernels bind them: the hash and candidate lists' words
-/// and the entries ([`SelfHashTable`]), read; the [`GpuSelfControl`], whose displacement box
-/// the substeps update.
+/// Self-collision's buffers as the force kernels bind them: the candidate lists and the hash
+/// ([`SelfHashTable`]), read; the [`GpuSelfControl`], whose box of displacements the substeps
+/// raise.
 const SELF_COLLISION: [Binding; 3] = [READ, READ, WRITE];
 
-/// `self_hash`'s bindings: the parameters, the positions it lists, the bucket counts, the words,
-/// the entries, the control, the rebuild's workgroups (which the check writes, and the rebuild's
-/// passes, reading them as their sizes, bind a placeholder for).
-const SELF_HASH_BINDINGS: [Binding; 7] = [PARAMS, READ, WRITE, WRITE, WRITE, WRITE, WRITE];
+/// `self_hash`'s bindings: the parameters, the positions it lists, the hash written (the insert
+/// pass), the hash read (the candidates pass), the candidate lists, the control, the rebuild's
+/// workgroups (the check's). Each pass binds placeholders where another pass's buffer goes: a
+/// dispatch may not bind one buffer for writing and for reading, nor for writing and as its size.
+const SELF_HASH_BINDINGS: [Binding; 7] = [PARAMS, READ, WRITE, READ, WRITE, WRITE, WRITE];
 
 /// `xpbd`'s bindings: parameters, colliders, constraints, positions and velocities in, positions
 /// and velocities out, the deepest penetration, the multipliers, the normal corrections, the
@@ -600,18 +594,17 @@ fn force_based(
 /// Self-collision's buffers ([`SelfHashTable`], [`GpuSelfControl`]), sized for the scene with
 /// `SelfCollision` and placeholders without.
 struct SelfCollisionBuffers {
-    /// The buckets' counts.
-    counts: BufferId,
-    /// The table and the candidate lists.
+    /// The candidate lists.
     words: BufferId,
-    /// The entries and the positions at the last rebuild.
-    entries: BufferId,
+    /// The hash.
+    links: BufferId,
     /// The control.
     control: BufferId,
-    /// The rebuild's passes' workgroups, which the check writes and their dispatches read; and
-    /// what the passes bind in its place.
+    /// The rebuild's passes' workgroups, which the check writes and their dispatches read.
     dispatch: BufferId,
-    dispatch_placeholder: BufferId,
+    /// What a pass binds in place of another pass's buffers: the hash written, the hash read,
+    /// the workgroups (no binding of a dispatch may alias another).
+    placeholders: [BufferId; 3],
     /// The rebuild's passes' workgroups for a rebuild.
     workgroups: [[u32; 2]; REBUILD_PASSES],
 }
@@ -619,7 +612,7 @@ struct SelfCollisionBuffers {
 impl SelfCollisionBuffers {
     /// The buffers of [`SELF_COLLISION`], in binding order.
     fn bound(&self) -> [BufferId; 3] {
-        [self.words, self.entries, self.control]
+        [self.words, self.links, self.control]
     }
 }
 
@@ -629,32 +622,30 @@ fn self_collision_buffers(b: &mut Builder, limits: &DeviceLimits) -> SelfCollisi
     if !b.scene.effects.contains(Effect::SelfCollision) {
         let control = b.buffer("self-collision control placeholder", storage, control_bytes, None);
         return SelfCollisionBuffers {
-            counts: b.buffer("self-collision counts placeholder", storage, 16, None),
-            words: b.buffer("self-collision words placeholder", storage, 16, None),
-            entries: b.buffer("self-collision entries placeholder", storage, 16, None),
+            words: b.buffer("self-collision lists placeholder", storage, 16, None),
+            links: b.buffer("self-collision hash placeholder", storage, 16, None),
             control,
             dispatch: control,
-            dispatch_placeholder: control,
+            placeholders: [control; 3],
             workgroups: [[0; 2]; REBUILD_PASSES],
         };
     }
     let table = SelfHashTable::of(b.scene);
     let n = b.scene.vertex_count() as u32;
-    let max = limits.max_workgroups_per_dimension;
-    let vertices = spilled_workgroups(n, HASH_SCAN_BLOCK, max);
-    let workgroups = [vertices, [table.blocks, 1], [1, 1], vertices, vertices];
+    let vertices = spilled_workgroups(n, SELF_HASH_WORKGROUP, limits.max_workgroups_per_dimension);
+    let workgroups = [vertices; REBUILD_PASSES];
     let mut control = GpuSelfControl::default();
     for (full, [x, y]) in control.full.iter_mut().zip(workgroups) {
         *full = [x, y, 1, 0];
     }
     let dispatch_bytes = (REBUILD_PASSES * size_of::<[u32; 4]>()) as u64;
     SelfCollisionBuffers {
-        counts: b.buffer("self-collision bucket counts", storage, 4 * table.buckets as u64, None),
-        words: b.buffer("self-collision hash and candidates", storage, 4 * table.words, None),
-        entries: b.buffer("self-collision entries", storage, 16 * table.entries, None),
+        words: b.buffer("self-collision candidate lists", storage, 4 * table.list_words, None),
+        links: b.filled("self-collision hash", storage, bytemuck::cast_slice(&table.initial_links())),
         control: b.filled("self-collision control", storage, bytemuck::bytes_of(&control)),
         dispatch: b.buffer("self-collision rebuild workgroups", BufferUsage::StorageIndirect, dispatch_bytes, None),
-        dispatch_placeholder: b.buffer("self-collision rebuild workgroups placeholder", storage, dispatch_bytes, None),
+        placeholders: ["hash written", "hash read", "workgroups"]
+            .map(|what| b.buffer(&format!("self-collision placeholder ({what})"), storage, dispatch_bytes, None)),
         workgroups,
     }
 }
@@ -664,15 +655,18 @@ fn self_collision_buffers(b: &mut Builder, limits: &DeviceLimits) -> SelfCollisi
 fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> SelfCollisionChecks {
     let kernel = b.kernel(Shader::SelfHash, &SELF_HASH_BINDINGS);
     let s = b.plan.state;
-    let groups = |b: &mut Builder, what: &str, dispatch: BufferId| {
+    let [written, read, dispatch] = buffers.placeholders;
+    // Per pass: the hash written, the hash read, the rebuild's workgroups.
+    let groups = |b: &mut Builder, which: HashPass, [written, read, dispatch]: [BufferId; 3]| {
         [0, 1].map(|k| {
             let (p, c) = (s.positions[k], buffers.control);
-            let bound = vec![s.params, p, buffers.counts, buffers.words, buffers.entries, c, dispatch];
-            b.group(kernel, format!("self-collision {what} of {}", NAME[k]), bound)
+            let bound = vec![s.params, p, written, read, buffers.words, c, dispatch];
+            b.group(kernel, format!("self-collision {} of {}", which.label(), NAME[k]), bound)
         })
     };
-    let checks = groups(b, "check", buffers.dispatch);
-    let rebuilds = groups(b, "rebuild", buffers.dispatch_placeholder);
+    let checks = groups(b, HashPass::Check, [written, read, buffers.dispatch]);
+    let inserts = groups(b, HashPass::Insert, [buffers.links, read, dispatch]);
+    let candidates = groups(b, HashPass::Candidates, [written, buffers.links, dispatch]);
     b.plan.state.indirect = Some(buffers.dispatch);
     b.plan.state.self_control = Some(buffers.control);
     let pass = |b: &mut Builder, which: HashPass, groups, workgroups, indirect| {
@@ -682,12 +676,10 @@ fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> Sel
     };
     let check = pass(b, HashPass::Check, checks, [1, 1], None);
     let forced = pass(b, HashPass::ForcedCheck, checks, [1, 1], None);
-    let rebuild = (HashPass::REBUILD.iter().enumerate())
-        .map(|(k, &which)| {
-            let offset = (k * size_of::<[u32; 4]>()) as u64;
-            pass(b, which, rebuilds, buffers.workgroups[k], Some(offset))
-        })
-        .collect();
+    let rebuild = vec![
+        pass(b, HashPass::Insert, inserts, buffers.workgroups[0], Some(0)),
+        pass(b, HashPass::Candidates, candidates, buffers.workgroups[1], Some(size_of::<[u32; 4]>() as u64)),
+    ];
     let interval = cloth_core::self_collision::SelfCollisionQuantities::of(b.scene).check_interval.max(1);
     SelfCollisionChecks { check, forced, rebuild, interval }
 }
