@@ -99,37 +99,18 @@ vec3 self_repulsion(uint j, vec3 x, vec3 v, float friction_dt) {
     return repulsion_force(x, x_j, v, v_j, params.vertex_mass, friction_dt);
 }
 
+#include "self_partners.glsl"
+
+// The self-collision term of partner j (self_partners.glsl): its repulsion on free vertex i at
+// c.x moving at c.a, with the friction's step c.s.
+vec4 pair_term(uint j, PairContext c) {
+    return vec4(self_repulsion(j, c.x, c.a, c.s), 0.0);
+}
+
 // The self-collision force on free vertex i at (vi, vj), at x moving at v, N: the repulsion of
-// its near partners row by row, then of its far partners, from its candidate list in increasing
-// index, or from the hash where the list overflowed (cloth_core::reference's
-// self_collision_force, in the same order).
+// every partner (sum_over_partners, in cloth_core::reference's self_collision_force's order).
 vec3 self_collision_force(uint i, uint vi, uint vj, vec3 x, vec3 v, float friction_dt) {
-    vec3 force = vec3(0.0);
-    for (int dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
-        for (int di = -NEAR_REACH; di <= NEAR_REACH; di++) {
-            uint j = near_partner(vi, vj, di, dj);
-            if (j != NO_VERTEX) {
-                force += self_repulsion(j, x, v, friction_dt);
-            }
-        }
-    }
-    uint count = candidate_count(i);
-    if (count <= LIST_CAPACITY) {
-        for (uint k = 0u; k < count; k++) {
-            force += self_repulsion(candidate(i, k), x, v, friction_dt);
-        }
-    } else {
-        FarSearch search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
-        for (uint k = 0u; k < 27u; k++) {
-            FarCell cell = far_cell(search, k);
-            for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
-                    force += self_repulsion(j, x, v, friction_dt);
-                }
-            }
-        }
-    }
-    return force;
+    return sum_over_partners(i, vi, vj, PairContext(x, v, friction_dt)).xyz;
 }
 
 // Adds to `force` the spring from vertex (i, j) (buffer index `index`) to its grid neighbour

@@ -105,45 +105,24 @@ vec4 self_contact_with(uint j, vec3 x, vec3 x0, float w) {
     return self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
 }
 
-// Pass 4: free vertex i's self-contacts with its near partners row by row, then its far partners
-// (from its candidate list, or from the hash where the list overflowed), averaged
-// (cloth_core::reference's project_self_contacts, in the same order).
+#include "self_partners.glsl"
+
+// The self-contact term of partner j (self_partners.glsl): free vertex i's correction for it,
+// from i's position c.x, its position at the substep's start c.a and its inverse mass c.s.
+vec4 pair_term(uint j, PairContext c) {
+    return self_contact_with(j, c.x, c.a, c.s);
+}
+
+// Pass 4: free vertex i's self-contacts with its partners (sum_over_partners, in
+// cloth_core::reference's project_self_contacts's order), averaged.
 void self_contacts(uint i) {
     vec4 p = positions_out[i];
     if (p.w <= 0.0) {
         self_corrections[i] = vec4(0.0);
         return;
     }
-    vec3 x = p.xyz;
-    vec3 x0 = positions_in[i].xyz;
-    float w = 1.0 / params.vertex_mass;
-    vec4 sum = vec4(0.0);
-    uint vi = i % params.grid_nx;
-    uint vj = i / params.grid_nx;
-    for (int dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
-        for (int di = -NEAR_REACH; di <= NEAR_REACH; di++) {
-            uint j = near_partner(vi, vj, di, dj);
-            if (j != NO_VERTEX) {
-                sum += self_contact_with(j, x, x0, w);
-            }
-        }
-    }
-    uint count = candidate_count(i);
-    if (count <= LIST_CAPACITY) {
-        for (uint k = 0u; k < count; k++) {
-            sum += self_contact_with(candidate(i, k), x, x0, w);
-        }
-    } else {
-        FarSearch search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
-        for (uint k = 0u; k < 27u; k++) {
-            FarCell cell = far_cell(search, k);
-            for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
-                    sum += self_contact_with(j, x, x0, w);
-                }
-            }
-        }
-    }
+    PairContext c = PairContext(p.xyz, positions_in[i].xyz, 1.0 / params.vertex_mass);
+    vec4 sum = sum_over_partners(i, i % params.grid_nx, i / params.grid_nx, c);
     vec3 correction = sum.w > 0.0 ? sum.xyz * (1.0 / sum.w) : vec3(0.0);
     self_corrections[i] = vec4(correction, 0.0);
 }

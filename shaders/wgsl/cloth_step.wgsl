@@ -150,37 +150,16 @@ fn self_repulsion(j: u32, x: vec3<f32>, v: vec3<f32>, friction_dt: f32) -> vec3<
     return repulsion_force(x, x_j, v, state_in(j).v, params.vertex_mass, friction_dt);
 }
 
+// The self-collision term of partner j (self_partners.wgsl): its repulsion on free vertex i at
+// c.x moving at c.a, with the friction's step c.s.
+fn pair_term(j: u32, c: PairContext) -> vec4<f32> {
+    return vec4<f32>(self_repulsion(j, c.x, c.a, c.s), 0.0);
+}
+
 // The self-collision force on free vertex i at (vi, vj), at x moving at v, N: the repulsion of
-// its near partners row by row, then of its far partners, from its candidate list in increasing
-// index, or from the hash where the list overflowed (cloth_core::reference's
-// self_collision_force, in the same order).
+// every partner (sum_over_partners, in cloth_core::reference's self_collision_force's order).
 fn self_collision_force(i: u32, vi: u32, vj: u32, x: vec3<f32>, v: vec3<f32>, friction_dt: f32) -> vec3<f32> {
-    var force = vec3<f32>(0.0);
-    for (var dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
-        for (var di = -NEAR_REACH; di <= NEAR_REACH; di++) {
-            let j = near_partner(vi, vj, di, dj);
-            if (j != NO_VERTEX) {
-                force += self_repulsion(j, x, v, friction_dt);
-            }
-        }
-    }
-    let count = candidate_count(i);
-    if (count <= LIST_CAPACITY) {
-        for (var k = 0u; k < count; k++) {
-            force += self_repulsion(candidate(i, k), x, v, friction_dt);
-        }
-    } else {
-        let search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
-        for (var k = 0u; k < 27u; k++) {
-            let cell = far_cell(search, k);
-            for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
-                    force += self_repulsion(j, x, v, friction_dt);
-                }
-            }
-        }
-    }
-    return force;
+    return sum_over_partners(i, vi, vj, PairContext(x, v, friction_dt)).xyz;
 }
 
 // Vertices along i of the block of the grid one workgroup updates (GpuTuning::

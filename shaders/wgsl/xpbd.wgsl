@@ -92,45 +92,22 @@ fn self_contact_with(j: u32, x: vec3<f32>, x0: vec3<f32>, w: f32) -> vec4<f32> {
     return self_contact_correction(x, q.xyz, x0, positions_in[j].xyz, w, max(q.w, 0.0) * w);
 }
 
-// Pass 4: free vertex i's self-contacts with its near partners row by row, then its far partners
-// (from its candidate list, or from the hash where the list overflowed), averaged
-// (cloth_core::reference's project_self_contacts, in the same order).
+// The self-contact term of partner j (self_partners.wgsl): free vertex i's correction for it,
+// from i's position c.x, its position at the substep's start c.a and its inverse mass c.s.
+fn pair_term(j: u32, c: PairContext) -> vec4<f32> {
+    return self_contact_with(j, c.x, c.a, c.s);
+}
+
+// Pass 4: free vertex i's self-contacts with its partners (sum_over_partners, in
+// cloth_core::reference's project_self_contacts's order), averaged.
 fn self_contacts(i: u32) {
     let p = positions_out[i];
     if (p.w <= 0.0) {
         self_corrections[i] = vec4<f32>(0.0);
         return;
     }
-    let x = p.xyz;
-    let x0 = positions_in[i].xyz;
-    let w = 1.0 / params.vertex_mass;
-    var sum = vec4<f32>(0.0);
-    let vi = i % params.grid_nx;
-    let vj = i / params.grid_nx;
-    for (var dj = -NEAR_REACH; dj <= NEAR_REACH; dj++) {
-        for (var di = -NEAR_REACH; di <= NEAR_REACH; di++) {
-            let j = near_partner(vi, vj, di, dj);
-            if (j != NO_VERTEX) {
-                sum += self_contact_with(j, x, x0, w);
-            }
-        }
-    }
-    let count = candidate_count(i);
-    if (count <= LIST_CAPACITY) {
-        for (var k = 0u; k < count; k++) {
-            sum += self_contact_with(candidate(i, k), x, x0, w);
-        }
-    } else {
-        let search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
-        for (var k = 0u; k < 27u; k++) {
-            let cell = far_cell(search, k);
-            for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
-                    sum += self_contact_with(j, x, x0, w);
-                }
-            }
-        }
-    }
+    let c = PairContext(p.xyz, positions_in[i].xyz, 1.0 / params.vertex_mass);
+    let sum = sum_over_partners(i, i % params.grid_nx, i / params.grid_nx, c);
     var correction = vec3<f32>(0.0);
     if (sum.w > 0.0) {
         correction = sum.xyz * (1.0 / sum.w);

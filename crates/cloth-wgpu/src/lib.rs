@@ -20,12 +20,13 @@ pub use context::{GpuContext, device_requirements, list_adapters};
 
 /// WGSL source of the force-based substep kernel: `layout.wgsl`, `colliders.wgsl` (the
 /// colliders' signed distances), `common.wgsl` (effect constants and force model),
-/// `self_collision.wgsl`, `cloth_step.wgsl`.
+/// `self_collision.wgsl`, `self_partners.wgsl`, `cloth_step.wgsl`.
 pub const STEP_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
     include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/self_collision.wgsl"),
+    include_str!("../../../shaders/wgsl/self_partners.wgsl"),
     include_str!("../../../shaders/wgsl/cloth_step.wgsl")
 );
 
@@ -57,12 +58,13 @@ pub fn tiled_shader_source(tile: &cloth_gpu::TileConfig) -> String {
 }
 
 /// WGSL source of the XPBD passes: `layout.wgsl`, `colliders.wgsl`, `common.wgsl`,
-/// `self_collision.wgsl`, `xpbd.wgsl`.
+/// `self_collision.wgsl`, `self_partners.wgsl`, `xpbd.wgsl`.
 pub const XPBD_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
     include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/self_collision.wgsl"),
+    include_str!("../../../shaders/wgsl/self_partners.wgsl"),
     include_str!("../../../shaders/wgsl/xpbd.wgsl")
 );
 
