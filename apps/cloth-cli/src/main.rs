@@ -257,6 +257,17 @@ fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>, bac
     } else {
         out!("stability  no bound: nothing in the scene (springs, contact, damping) limits the substep")?;
     }
+    if scene.effects.contains(cloth_core::Effect::SelfCollision) {
+        let q = cloth_core::self_collision::SelfCollisionQuantities::of(&scene);
+        out!(
+            "self       thickness {:.3e} m, margin {:.3e} m; on the GPU the candidate lists are checked every {} \
+             substep(s), with a lookahead of {:.3e} m",
+            q.thickness,
+            q.margin,
+            q.check_interval,
+            q.lookahead
+        )?;
+    }
     out!(
         "work       {} frames are {work:.3e} vertex-substeps of the {:.0e} one command may run on {}",
         scene.time.frames,
