@@ -7,10 +7,10 @@
 //! | RK4 | 4: `STAGE = 3..=6`, one per stage |
 //! | XPBD | `xpbd`: predict; 10 × (one per non-empty colour, the self-contacts, the colliders); finish |
 //!
-//! With `SelfCollision`, self-collision's check (`self_hash`, one invocation) comes before every
-//! `C`-th substep, counted from the simulation's first, followed by the five indirect dispatches
-//! that rebuild the hash and the candidate lists (count, scan, sums, scatter, candidates), whose
-//! sizes the check writes: the full sizes when a rebuild is due, zeros otherwise. Before the next
+//! With `SelfCollision`, self-collision's check (`self_hash`, one workgroup) comes before every
+//! `C`-th substep, counted from the simulation's first, followed by the two indirect dispatches
+//! that rebuild the hash and the candidate lists (insert, candidates), whose sizes the check
+//! writes: the full sizes when a rebuild is due, zeros otherwise. Before the next
 //! substep after the state or the parameters were written, the check always rebuilds
 //! (`cloth_core::self_collision` says when a rebuild is due, and why the lists stay correct in
 //! between).
@@ -105,7 +105,7 @@ pub struct SelfCollisionChecks {
     pub check: Pass,
     /// The check that always orders one (the first substep, and after a written state).
     pub forced: Pass,
-    /// Count, scan, sums, scatter, candidates: indirect.
+    /// Insert, candidates: indirect.
     pub rebuild: Vec<Pass>,
     /// Substeps between checks, `C` (at least 1).
     pub interval: u32,

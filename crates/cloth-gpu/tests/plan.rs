@@ -276,3 +276,42 @@ fn a_device_with_too_few_storage_buffers_or_invocations_is_refused() {
     let refused = Plan::new(&scene(Integrator::RungeKutta4, 300), &GpuTuning::default(), &tight, "test");
     assert!(matches!(refused, Err(SimError::TooLarge { .. })), "{refused:?}");
 }
+
+/// With self-collision every integrator's frame checks the candidate lists every `C` substeps,
+/// counted from the simulation's first, before the substep: the check, then the two rebuild
+/// passes as indirect dispatches reading their sizes from the check's buffer; the first substep
+/// after a written state always rebuilds (the forced check).
+#[test]
+fn self_collision_checks_come_every_check_interval_with_indirect_rebuilds() {
+    for integrator in Integrator::ALL {
+        let mut scene = scene(integrator, 24);
+        scene.effects = scene.effects.with(cloth_core::Effect::SelfCollision);
+        scene.time.substeps = Substeps::Fixed(40);
+        let interval = cloth_core::self_collision::SelfCollisionQuantities::of(&scene).check_interval as u64;
+        assert!(interval > 1, "{integrator:?}: a check interval of {interval} tests nothing here");
+        let plan = Plan::new(&scene, &GpuTuning::default(), &GPU, "test").unwrap();
+        assert!(plan.state.indirect.is_some() && plan.state.self_control.is_some());
+        let checks = plan.schedule.self_collision.as_ref().expect("self-collision's checks");
+        assert_eq!(checks.interval as u64, interval);
+        let (check, forced) = (checks.check.pipeline, checks.forced.pipeline);
+        let per_substep = plan.schedule.substep.len();
+        // From substep 3 on, with the lists stale: a forced check first, then every C-th.
+        let mut frame = Vec::new();
+        let substeps = 3 * interval;
+        plan.schedule.frame_from(3, true, substeps, 0, &mut frame);
+        let mut at = 0;
+        for s in 3..3 + substeps {
+            let expected = if s == 3 { Some(forced) } else { s.is_multiple_of(interval).then_some(check) };
+            if let Some(pipeline) = expected {
+                assert_eq!(frame[at].pipeline, pipeline, "{integrator:?}: substep {s}");
+                assert_eq!(frame[at].indirect, None);
+                let offsets: Vec<Option<u64>> = frame[at + 1..at + 3].iter().map(|d| d.indirect).collect();
+                assert_eq!(offsets, [Some(0), Some(16)], "{integrator:?}: substep {s}: the rebuild's two passes");
+                at += 3;
+            }
+            assert!(frame[at..at + per_substep].iter().all(|d| d.indirect.is_none()));
+            at += per_substep;
+        }
+        assert_eq!(at, frame.len(), "{integrator:?}: nothing else in the frame");
+    }
+}
