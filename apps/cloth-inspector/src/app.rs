@@ -432,6 +432,7 @@ impl InspectorApp {
                     elastic_j: energy.elastic.iter().sum(),
                     max_penetration_m: diagnostics.max_penetration_m.max(previous),
                     self_intersections,
+                    candidate_lists: diagnostics.candidate_lists,
                 });
                 if state.non_finite_count() > 0 {
                     self.state.playing = false;

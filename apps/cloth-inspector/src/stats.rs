@@ -16,6 +16,8 @@ pub struct Sample {
     /// Edge–triangle crossings of the cloth through itself (`None`: not counted, the grid is
     /// larger than [`crate::app::MAX_COUNTED_VERTICES`] or the cloth is torn across itself).
     pub self_intersections: Option<usize>,
+    /// With `SelfCollision` on a GPU backend, how its candidate lists fared since it was created.
+    pub candidate_lists: Option<cloth_core::self_collision::CandidateListStats>,
 }
 
 /// Rolling history and the latest timings.

@@ -43,6 +43,17 @@ pub fn show(ui: &mut egui::Ui, stats: &Stats, scene: &Scene) {
         )),
     }
     .on_hover_text("Counted exactly on the last sampled state (docs/model.md, Self-intersections)");
+    if let Some(lists) = stats.samples.back().and_then(|s| s.candidate_lists) {
+        let share = if lists.checks > 0 { 100.0 * lists.rebuilds as f64 / lists.checks as f64 } else { 0.0 };
+        ui.label(format!(
+            "Self-collision's candidate lists: checked {} times, rebuilt {} ({share:.0}%); {} lists overflowed",
+            lists.checks, lists.rebuilds, lists.overflowed_lists
+        ))
+        .on_hover_text(
+            "The GPU rebuilds its lists of far partners when the cloth's parts may have moved against each other by \
+             more than the margin (docs/model.md, Self-collision)",
+        );
+    }
     if stats.samples.iter().any(|s| s.self_intersections.is_some()) {
         Plot::new("self-intersections").height(80.0).show(ui, |plot| {
             plot.line(Line::new("crossings", series(|s| s.self_intersections.map_or(f64::NAN, |n| n as f64))));
