@@ -338,6 +338,7 @@ struct Builder<'a> {
     plan: Plan,
     scene: &'a Scene,
     tuning: &'a GpuTuning,
+    limits: &'a DeviceLimits,
 }
 
 impl Builder<'_> {
@@ -414,7 +415,7 @@ impl Plan {
             .collect();
         let velocities: Vec<[f32; 4]> =
             grid.pinned.iter().map(|&pinned| if pinned { [0.0; 4] } else { [v0[0], v0[1], v0[2], 0.0] }).collect();
-        let mut b = Builder { plan: Plan::default(), scene, tuning };
+        let mut b = Builder { plan: Plan::default(), scene, tuning, limits };
         let (storage, drawable) = (BufferUsage::Storage, BufferUsage::StorageDrawable);
         let state = StateBuffers {
             params: b.filled("params", BufferUsage::Uniform, bytemuck::bytes_of(&GpuSimParams::of(scene))),
@@ -470,7 +471,7 @@ fn force_based(
     // runs neither tiled nor on the packed state.
     let self_collision = scene.effects.contains(Effect::SelfCollision);
     let tile = if self_collision { None } else { TileConfig::choose(tuning, scene.integrator, nx * ny, limits)? };
-    let self_buffers = self_collision_buffers(b, limits);
+    let self_buffers = self_collision_buffers(b);
     let rk4 = scene.integrator == Integrator::RungeKutta4;
     let rk4_scratch = b.buffer("RK4 scratch", storage, if rk4 { 64 * n } else { 64 }, None);
     // Placeholders for the packed bindings of the passes that do not use them: a read-only one,
@@ -591,8 +592,8 @@ fn force_based(
     Ok(schedule)
 }
 
-/// Self-collision's buffers ([`SelfHashTable`], [`GpuSelfControl`]), sized for the scene with
-/// `SelfCollision` and placeholders without.
+/// Self-collision's buffers the force kernels bind ([`SelfHashTable`], [`GpuSelfControl`]), sized
+/// for the scene with `SelfCollision` and placeholders without.
 struct SelfCollisionBuffers {
     /// The candidate lists.
     words: BufferId,
@@ -600,13 +601,6 @@ struct SelfCollisionBuffers {
     links: BufferId,
     /// The control.
     control: BufferId,
-    /// The rebuild's passes' workgroups, which the check writes and their dispatches read.
-    dispatch: BufferId,
-    /// What a pass binds in place of another pass's buffers: the hash written, the hash read,
-    /// the workgroups (no binding of a dispatch may alias another).
-    placeholders: [BufferId; 3],
-    /// The rebuild's passes' workgroups for a rebuild.
-    workgroups: [[u32; 2]; REBUILD_PASSES],
 }
 
 impl SelfCollisionBuffers {
@@ -616,46 +610,43 @@ impl SelfCollisionBuffers {
     }
 }
 
-fn self_collision_buffers(b: &mut Builder, limits: &DeviceLimits) -> SelfCollisionBuffers {
+fn self_collision_buffers(b: &mut Builder) -> SelfCollisionBuffers {
     let storage = BufferUsage::Storage;
-    let control_bytes = size_of::<GpuSelfControl>() as u64;
     if !b.scene.effects.contains(Effect::SelfCollision) {
-        let control = b.buffer("self-collision control placeholder", storage, control_bytes, None);
+        let control = size_of::<GpuSelfControl>() as u64;
         return SelfCollisionBuffers {
             words: b.buffer("self-collision lists placeholder", storage, 16, None),
             links: b.buffer("self-collision hash placeholder", storage, 16, None),
-            control,
-            dispatch: control,
-            placeholders: [control; 3],
-            workgroups: [[0; 2]; REBUILD_PASSES],
+            control: b.buffer("self-collision control placeholder", storage, control, None),
         };
     }
     let table = SelfHashTable::of(b.scene);
-    let n = b.scene.vertex_count() as u32;
-    let vertices = spilled_workgroups(n, SELF_HASH_WORKGROUP, limits.max_workgroups_per_dimension);
-    let workgroups = [vertices; REBUILD_PASSES];
-    let mut control = GpuSelfControl::default();
-    for (full, [x, y]) in control.full.iter_mut().zip(workgroups) {
-        *full = [x, y, 1, 0];
-    }
-    let dispatch_bytes = (REBUILD_PASSES * size_of::<[u32; 4]>()) as u64;
+    let [x, y] = self_hash_vertex_workgroups(b);
+    // Both rebuild passes run one invocation a vertex.
+    let control = GpuSelfControl { full: [[x, y, 1, 0]; REBUILD_PASSES], ..Default::default() };
     SelfCollisionBuffers {
         words: b.buffer("self-collision candidate lists", storage, 4 * table.list_words, None),
         links: b.filled("self-collision hash", storage, bytemuck::cast_slice(&table.initial_links())),
         control: b.filled("self-collision control", storage, bytemuck::bytes_of(&control)),
-        dispatch: b.buffer("self-collision rebuild workgroups", BufferUsage::StorageIndirect, dispatch_bytes, None),
-        placeholders: ["hash written", "hash read", "workgroups"]
-            .map(|what| b.buffer(&format!("self-collision placeholder ({what})"), storage, dispatch_bytes, None)),
-        workgroups,
     }
 }
 
+/// The workgroups of a `self_hash` pass with one invocation a vertex.
+fn self_hash_vertex_workgroups(b: &Builder) -> [u32; 2] {
+    let n = b.scene.vertex_count() as u32;
+    spilled_workgroups(n, SELF_HASH_WORKGROUP, b.limits.max_workgroups_per_dimension)
+}
+
 /// Self-collision's check (one workgroup) and the rebuild's indirect passes, reading state `k`'s
-/// positions (`self_hash`).
+/// positions (`self_hash`), with the buffer of the rebuild's workgroups and the placeholders the
+/// passes bind where another pass's buffer goes (no binding of a dispatch may alias another).
 fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> SelfCollisionChecks {
     let kernel = b.kernel(Shader::SelfHash, &SELF_HASH_BINDINGS);
     let s = b.plan.state;
-    let [written, read, dispatch] = buffers.placeholders;
+    let bytes = (REBUILD_PASSES * size_of::<[u32; 4]>()) as u64;
+    let workgroups = b.buffer("self-collision rebuild workgroups", BufferUsage::StorageIndirect, bytes, None);
+    let [written, read, sizes] = ["hash written", "hash read", "workgroups"]
+        .map(|what| b.buffer(&format!("self-collision placeholder ({what})"), BufferUsage::Storage, bytes, None));
     // Per pass: the hash written, the hash read, the rebuild's workgroups.
     let groups = |b: &mut Builder, which: HashPass, [written, read, dispatch]: [BufferId; 3]| {
         [0, 1].map(|k| {
@@ -664,22 +655,26 @@ fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> Sel
             b.group(kernel, format!("self-collision {} of {}", which.label(), NAME[k]), bound)
         })
     };
-    let checks = groups(b, HashPass::Check, [written, read, buffers.dispatch]);
-    let inserts = groups(b, HashPass::Insert, [buffers.links, read, dispatch]);
-    let candidates = groups(b, HashPass::Candidates, [written, buffers.links, dispatch]);
-    b.plan.state.indirect = Some(buffers.dispatch);
+    let checks = groups(b, HashPass::Check, [written, read, workgroups]);
+    let inserts = groups(b, HashPass::Insert, [buffers.links, read, sizes]);
+    let candidates = groups(b, HashPass::Candidates, [written, buffers.links, sizes]);
+    b.plan.state.indirect = Some(workgroups);
     b.plan.state.self_control = Some(buffers.control);
-    let pass = |b: &mut Builder, which: HashPass, groups, workgroups, indirect| {
+    let pass = |b: &mut Builder, which: HashPass, groups, indirect: Option<u64>| {
         let label = format!("self-collision {}", which.label());
         let pipeline = b.pipeline(kernel, &label, &[(Constant::HashPass, which as u32)]);
+        // (An indirect pass's workgroups are the most the check writes: the vertices'.)
+        let workgroups = if indirect.is_some() { self_hash_vertex_workgroups(b) } else { [1, 1] };
         Pass { pipeline, groups, workgroups, dynamic_offset: None, indirect }
     };
-    let check = pass(b, HashPass::Check, checks, [1, 1], None);
-    let forced = pass(b, HashPass::ForcedCheck, checks, [1, 1], None);
-    let rebuild = vec![
-        pass(b, HashPass::Insert, inserts, buffers.workgroups[0], Some(0)),
-        pass(b, HashPass::Candidates, candidates, buffers.workgroups[1], Some(size_of::<[u32; 4]>() as u64)),
-    ];
+    let check = pass(b, HashPass::Check, checks, None);
+    let forced = pass(b, HashPass::ForcedCheck, checks, None);
+    let rebuild = (HashPass::REBUILD.iter().enumerate())
+        .map(|(k, &which)| {
+            let groups = if which == HashPass::Insert { inserts } else { candidates };
+            pass(b, which, groups, Some((k * size_of::<[u32; 4]>()) as u64))
+        })
+        .collect();
     let interval = cloth_core::self_collision::SelfCollisionQuantities::of(b.scene).check_interval.max(1);
     SelfCollisionChecks { check, forced, rebuild, interval }
 }
@@ -765,7 +760,7 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
     let corrections = b.buffer("XPBD normal corrections", storage, 4 * n, None);
     let range_buffer = b.filled("XPBD colour ranges", BufferUsage::Uniform, &ranges);
     let self_collision = scene.effects.contains(Effect::SelfCollision);
-    let self_buffers = self_collision_buffers(b, limits);
+    let self_buffers = self_collision_buffers(b);
     let self_corrections =
         b.buffer("XPBD self-contact corrections", storage, if self_collision { 16 * n } else { 16 }, None);
     let kernel = b.kernel(Shader::Xpbd, &XPBD_BINDINGS);
