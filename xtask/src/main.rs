@@ -5,7 +5,7 @@
 //!   `out/drape.png`;
 //! * `cargo xtask test`: installs what is missing, then runs every check CI runs
 //!   (`cargo fmt --check`, `cargo clippy -D warnings`, `cargo test --workspace`);
-//! * `cargo xtask setup`: only installs the system packages.
+//! * `cargo xtask setup`: only installs the system packages and the glTF validator (npm).
 //!
 //! System packages are installed with apt when running as root on Debian/Ubuntu; otherwise the
 //! exact command is printed and the task stops.
@@ -79,8 +79,38 @@ fn is_root() -> bool {
     Command::new("id").arg("-u").output().map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0").unwrap_or(false)
 }
 
+/// Node.js and npm, unless a `node` and an `npm` are already on the PATH (from Debian or another
+/// distribution of Node).
+const NODE_PACKAGES: &[Package] = &[
+    Package { name: "nodejs", why: "runs the Khronos glTF validator on the export tests' files" },
+    Package { name: "npm", why: "installs the glTF validator (tests/gltf-validator)" },
+];
+
+fn on_path(command: &str) -> bool {
+    Command::new(command).arg("--version").output().is_ok_and(|o| o.status.success())
+}
+
 fn setup() -> Result<()> {
-    let missing: Vec<&Package> = PACKAGES.iter().filter(|p| !installed(p.name)).collect();
+    install_packages()?;
+    install_validator()
+}
+
+/// The npm packages of `tests/gltf-validator` (the Khronos glTF validator), installed from its
+/// lock file when missing.
+fn install_validator() -> Result<()> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/gltf-validator");
+    if dir.join("node_modules/gltf-validator/package.json").is_file() {
+        return Ok(());
+    }
+    eprintln!("xtask: installing the glTF validator (npm ci in tests/gltf-validator)");
+    sh(Command::new("npm").args(["ci", "--no-audit", "--no-fund", "--silent"]).current_dir(&dir))
+}
+
+fn install_packages() -> Result<()> {
+    let mut missing: Vec<&Package> = PACKAGES.iter().filter(|p| !installed(p.name)).collect();
+    if !(on_path("node") && on_path("npm")) {
+        missing.extend(NODE_PACKAGES.iter().filter(|p| !installed(p.name)));
+    }
     if missing.is_empty() {
         return Ok(());
     }

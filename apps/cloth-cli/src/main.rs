@@ -20,6 +20,7 @@ macro_rules! out {
 
 mod bench;
 mod figure;
+mod picture;
 mod render;
 mod report;
 mod study;
@@ -105,13 +106,30 @@ struct RunArgs {
     /// Print one JSON object instead of the text summary.
     #[arg(long)]
     json: bool,
-    /// Render the final state to this PNG file.
+    /// Draw the final state into this PNG file, with the inspector's renderer (offscreen, on the
+    /// first Vulkan device; the CPU rasteriser where there is none, and the run says so).
     #[arg(long)]
     png: Option<PathBuf>,
+    /// Draw the run as an animated GIF into this file: about 40 pictures over the run, played at
+    /// the simulated pace.
+    #[arg(long)]
+    gif: Option<PathBuf>,
+    /// Colour of the cloth in the pictures: plain, strain (structural), shear, bend, contact or
+    /// speed.
+    #[arg(long, default_value = "plain", value_parser = cloth_view::ColorMode::NAMES)]
+    color: String,
     /// Write the final cloth mesh to this Wavefront OBJ file (vertices, normals, two triangles a
     /// cell; no collider).
     #[arg(long)]
     obj: Option<PathBuf>,
+    /// Export the run: to FILE.glb, one binary glTF 2.0 file (the cloth, its motion as an
+    /// animation on the simulated clock, every collider); to DIR/ (a folder, created if missing),
+    /// one OBJ per kept frame, the colliders' OBJ and a CSV of the per-frame diagnostics.
+    #[arg(long, value_name = "FILE.glb|DIR/")]
+    export: Option<PathBuf>,
+    /// Keep every Nth frame in the export (the start is always kept).
+    #[arg(long, default_value_t = 1, value_name = "N", requires = "export")]
+    every: u32,
     /// Count the cloth's self-intersections every N frames (1: every frame; 0: the final state
     /// only). Each count reads the positions back and, on two CPU cores, takes about as long as
     /// a CPU frame of 16 to 30 substeps: on large grids a larger N keeps the run fast, and the
@@ -286,21 +304,40 @@ fn mib(bytes: u64) -> f64 {
 }
 
 /// What `cloth run` will simulate, decided before anything starts: the scene with its
-/// overrides, the backend, the frames, and their work within the backend's budget.
-fn plan_run(args: &RunArgs) -> Result<(Scene, backends::Backend, u32, WorkPlan)> {
+/// overrides, the backend, the frames, their work within the backend's budget, and the export.
+struct RunPlan {
+    scene: Scene,
+    backend: backends::Backend,
+    frames: u32,
+    /// Checked against the budgets when planned; the property test reads it back.
+    #[cfg_attr(not(test), expect(dead_code, reason = "the run needs only the check"))]
+    work: WorkPlan,
+    export: Option<cloth_export::ExportPlan>,
+}
+
+fn plan_run(args: &RunArgs) -> Result<RunPlan> {
     let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
     let backend = backends::find(&args.backend).map_err(anyhow::Error::msg)?;
     let frames = args.frames.unwrap_or(scene.time.frames);
     let mut plan = WorkPlan::default();
     plan.add(backend.name, &scene, frames).map_err(|p| anyhow::anyhow!("--{p}"))?;
-    Ok((scene, backend, frames, plan))
+    // Checked before the run: the target, and that the run fits the format.
+    let export =
+        args.export.as_ref().map(|path| cloth_export::ExportPlan::new(path, &scene, frames, args.every)).transpose()?;
+    Ok(RunPlan { scene, backend, frames, work: plan, export })
 }
 
 fn run(args: RunArgs) -> Result<()> {
-    let (scene, backend, frames, _) = plan_run(&args)?;
-    for path in [&args.png, &args.obj].into_iter().flatten() {
+    let RunPlan { scene, backend, frames, export, .. } = plan_run(&args)?;
+    for path in [&args.png, &args.obj, &args.gif].into_iter().flatten() {
         backends::output::check_writable(path)?;
     }
+    let color = cloth_view::ColorMode::from_name(&args.color).expect("clap checks the name");
+    let mut painter = (args.png.is_some() || args.gif.is_some()).then(picture::Painter::new);
+    // The GIF's pictures: about 40 over the run, the start included.
+    let gif_every = (frames / 40).max(1);
+    let (gif_size, mut gif_frames) = ([480, 360], Vec::new());
+    let model = ClothModel::new(&scene);
     let mut sim = (backend.create)(&scene, &args.tuning.tuning())
         .with_context(|| format!("cannot start the {} backend", backend.name))?;
 
@@ -311,6 +348,11 @@ fn run(args: RunArgs) -> Result<()> {
             .progress_chars("=> "),
     );
     progress.set_message(format!("{} on {}", scene.name, sim.backend_name()));
+    let mut exporter = match &export {
+        Some(plan) => Some(cloth_export::Exporter::start(plan, &scene, &sim.read_state()?, sim.backend_name())?),
+        None => None,
+    };
+    let (mut exporting, mut exported) = (std::time::Duration::ZERO, None);
     let start = Instant::now();
     let mut counts = cloth_core::AdvanceCounts::default();
     let [nx, ny] = scene.cloth.resolution;
@@ -331,16 +373,35 @@ fn run(args: RunArgs) -> Result<()> {
             most_crossings = most_crossings.zip(crossings).map(|(a, b)| a.max(b));
             counting += t.elapsed();
         }
+        if let (Some(painter), Some(_)) = (&mut painter, &args.gif)
+            && (done + 1) % gif_every == 0
+        {
+            let t = Instant::now();
+            gif_frames.push(painter.draw(&model, &sim.read_state()?, color, gif_size)?);
+            exporting += t.elapsed();
+        }
+        // The export reads the kept frames back; its writing is not part of the simulation's time.
+        if let (Some(exporter), Some(plan)) = (&mut exporter, &export)
+            && plan.keeps(done + 1)
+        {
+            let t = Instant::now();
+            exporter.record(&sim.read_state()?)?;
+            exporting += t.elapsed();
+        }
         progress.set_position(done as u64 + 1);
     }
+    if let Some(exporter) = exporter {
+        let t = Instant::now();
+        exported = Some(exporter.finish()?);
+        exporting += t.elapsed();
+    }
     let state = sim.read_state()?;
-    let wall = start.elapsed().saturating_sub(counting);
+    let wall = start.elapsed().saturating_sub(counting).saturating_sub(exporting);
     progress.finish_and_clear();
     let at_end = intersections::count(&state.positions, nx, ny).ok();
     let self_intersections =
         report::SelfIntersections { at_end, max: most_crossings.zip(at_end).map(|(a, b)| a.max(b)) };
     let diagnostics = sim.diagnostics()?;
-    let model = ClothModel::new(&scene);
     let energy = Energy::of(&model, &state);
     let measured = report::Measured {
         state: &state,
@@ -357,10 +418,19 @@ fn run(args: RunArgs) -> Result<()> {
     } else {
         report.print_text()?;
     }
-    if let Some(png) = &args.png {
-        render::write_png(&model, &state, png, 800, 600)?;
+    if let (Some(painter), Some(png)) = (&mut painter, &args.png) {
+        let size = [800, 600];
+        let pixels = painter.draw(&model, &state, color, size)?;
+        backends::output::write_atomically(png, &picture::encode_png(&pixels, size[0], size[1])?)?;
         if !args.json {
-            out!("picture     {}", png.display())?;
+            out!("picture     {} (drawn by {})", png.display(), painter.description())?;
+        }
+    }
+    if let (Some(painter), Some(gif)) = (&painter, &args.gif) {
+        let delay = f64::from(gif_every) * scene.time.frame_dt;
+        picture::write_gif(gif, &gif_frames, gif_size, delay)?;
+        if !args.json {
+            out!("animation   {} ({} pictures, drawn by {})", gif.display(), gif_frames.len(), painter.description())?;
         }
     }
     if let Some(obj) = &args.obj {
@@ -377,6 +447,17 @@ fn run(args: RunArgs) -> Result<()> {
         if !args.json {
             out!("mesh        {}", obj.display())?;
         }
+    }
+    if let Some(summary) = &exported
+        && !args.json
+    {
+        out!(
+            "export      {} ({} frames, {:.1} MiB, written in {:.2} s)",
+            summary.path.display(),
+            summary.frames,
+            mib(summary.bytes),
+            exporting.as_secs_f64()
+        )?;
     }
     if report.nan_count > 0 {
         bail!(
@@ -400,7 +481,7 @@ mod tests {
     /// What a command plans to run, from the same planning functions the commands call.
     fn preflight(cli: &Cli) -> Result<WorkPlan> {
         match &cli.command {
-            Command::Run(args) => plan_run(args).map(|plan| plan.3),
+            Command::Run(args) => plan_run(args).map(|plan| plan.work),
             Command::Check { scene, grid, substeps, backend } => {
                 plan_check(scene, *grid, *substeps, backend).map(|plan| plan.2)
             }

@@ -1,8 +1,7 @@
-//! A small software renderer for `--png`: the cloth as shaded two-sided triangles and the
-//! colliders (sphere-traced from their signed distances), seen by a perspective camera, written as a PNG. Good enough to see a drape at a
-//! glance without a GPU or a window.
-
-use std::path::Path;
+//! The fallback picture of `--png` where no Vulkan device can draw the inspector's view: a small
+//! software renderer of the cloth as flat-shaded two-sided triangles and the colliders
+//! (sphere-traced from their signed distances), seen by a perspective camera. Good enough to see a
+//! drape at a glance without any GPU; also the PNG encoder of the study's plots.
 
 use anyhow::Context;
 use cloth_core::colliders::{Collider, ColliderKind};
@@ -76,18 +75,6 @@ const RAY_STEPS: usize = 128;
 fn shade(base: [f64; 3], lambert: f64) -> [f64; 3] {
     let l = 0.25 + 0.75 * lambert.clamp(0.0, 1.0);
     [base[0] * l, base[1] * l, base[2] * l]
-}
-
-/// Renders the state and writes a PNG of `width × height` pixels.
-pub fn write_png(
-    model: &ClothModel,
-    state: &ClothState,
-    path: &Path,
-    width: usize,
-    height: usize,
-) -> anyhow::Result<()> {
-    let pixels = render(model, state, width, height);
-    Ok(cloth_backends::output::write_atomically(path, &encode_png(&pixels, width as u32, height as u32)?)?)
 }
 
 /// RGB8 `pixels` of `width × height` as a PNG file's bytes.

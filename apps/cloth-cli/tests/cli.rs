@@ -50,14 +50,98 @@ fn run_json_reports_every_documented_field() {
     assert!(crossings["max"].as_u64().unwrap() >= crossings["final"].as_u64().unwrap(), "{v}");
 }
 
+/// Decodes a PNG into RGBA pixels and its size.
+fn decode_png(bytes: &[u8]) -> (Vec<u8>, u32, u32) {
+    let mut reader = png::Decoder::new(std::io::Cursor::new(bytes)).read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    pixels.truncate(info.buffer_size());
+    (pixels, info.width, info.height)
+}
+
+/// `--png` draws with the inspector's renderer offscreen (lavapipe where there is no GPU; CI has
+/// it, so a fallback fails this test): the sky, the ground grid's lines and the colliders are
+/// there, and the shading is smooth (many shades of the cloth's colour).
 #[test]
-fn run_writes_a_png_of_the_cloth() {
+fn run_draws_a_png_with_the_inspectors_renderer() {
     let path = std::env::temp_dir().join(format!("cloth-cli-test-{}.png", std::process::id()));
-    let out = cloth(&["run", "scenes/hold.ron", "--frames", "5", "--png", path.to_str().unwrap()]);
+    let args = ["run", "scenes/colliders.ron", "--frames", "5", "--grid", "16x16", "--png", path.to_str().unwrap()];
+    let out = cloth(&args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let bytes = std::fs::read(&path).unwrap();
-    assert_eq!(&bytes[1..4], b"PNG");
+    assert!(stdout.contains("drawn by the inspector's renderer on "), "{stdout}");
+    let (pixels, width, height) = decode_png(&std::fs::read(&path).unwrap());
+    assert_eq!((width, height), (800, 600));
+    let count = |rgb: [u8; 3]| pixels.chunks(4).filter(|p| p[..3] == rgb).count();
+    // render.wgsl's sky (0.78, 0.82, 0.88) and grid lines (0.62, 0.64, 0.68), 8-bit.
+    assert!(count([199, 209, 224]) > 10_000, "the sky");
+    assert!(count([158, 163, 173]) > 200, "the ground grid");
+    let shades: std::collections::HashSet<&[u8]> = pixels.chunks(4).map(|p| &p[..3]).collect();
+    assert!(shades.len() > 200, "smooth shading gives many shades: {}", shades.len());
     let _ = std::fs::remove_file(path);
+}
+
+/// `--gif` writes an animation of the run, and `--color` picks the cloth's colours.
+#[test]
+fn run_draws_an_animated_gif() {
+    let path = std::env::temp_dir().join(format!("cloth-cli-test-{}.gif", std::process::id()));
+    let args = ["run", "--frames", "6", "--grid", "12x12", "--color", "speed", "--gif", path.to_str().unwrap()];
+    let out = cloth(&args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("(6 pictures, drawn by the inspector's renderer"), "{stdout}");
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[..6], b"GIF89a");
+    let _ = std::fs::remove_file(path);
+}
+
+/// `--export` writes a GLB (or a folder) and says so; a run too large for the format is refused
+/// before it starts with the frames that fit; a run killed mid-export leaves no file under the
+/// final name.
+#[test]
+fn run_exports_and_refuses_what_the_format_cannot_hold() {
+    let dir = std::env::temp_dir().join(format!("cloth-cli-export-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let glb = dir.join("drape.glb");
+    let out = cloth(&["run", "--frames", "6", "--grid", "10x10", "--export", glb.to_str().unwrap(), "--every", "3"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains(&format!("export      {} (3 frames, ", glb.display())), "{stdout}");
+    assert_eq!(&std::fs::read(&glb).unwrap()[..4], b"glTF");
+    let folder = format!("{}/frames/", dir.display());
+    let out = cloth(&["run", "--frames", "2", "--grid", "10x10", "--export", &folder]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(dir.join("frames/diagnostics.csv").is_file() && dir.join("frames/frame_00002.obj").is_file());
+    let big = dir.join("big.glb");
+    let out = cloth(&[
+        "run",
+        "--grid",
+        "1024x1024",
+        "--frames",
+        "300",
+        "--backend",
+        "wgpu",
+        "--export",
+        big.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("frames fit at --every 1"), "{stderr}");
+    assert!(!big.exists());
+    // Killed while it runs: only hidden temporary files may remain, never the final name.
+    let killed = dir.join("killed.glb");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cloth"))
+        .args(["run", "--frames", "2000", "--grid", "24x24", "--export", killed.to_str().unwrap()])
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!killed.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// `--obj` writes the final cloth as a Wavefront OBJ: a vertex and a normal per cloth vertex, two

@@ -99,6 +99,7 @@ pub struct Runtime {
     confirm_quit: bool,
     allow_close: bool,
     study: panels::study::StudyPanel,
+    export: panels::export::ExportPanel,
     effect_costs: panels::effect_costs::EffectCostsPanel,
     /// How the GPU backends lay their work out, and the draft the tuning panel edits.
     tuning: GpuTuning,
@@ -191,6 +192,7 @@ impl InspectorApp {
                 confirm_quit: false,
                 allow_close: false,
                 study: Default::default(),
+                export: Default::default(),
                 effect_costs: Default::default(),
                 tuning: GpuTuning::default(),
                 tuning_draft: GpuTuning::default(),
@@ -731,6 +733,8 @@ impl eframe::App for InspectorApp {
                 }
                 egui::CollapsingHeader::new("Accuracy study")
                     .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene, backend, &self.runtime.tuning));
+                egui::CollapsingHeader::new("Export")
+                    .show(ui, |ui| self.runtime.export.show(ui, &self.state.scene, backend, &self.runtime.tuning));
             });
         });
         if !self.runtime.notices.is_empty() {

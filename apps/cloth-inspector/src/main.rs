@@ -4,7 +4,6 @@
 //! user input and writes the window's image.
 
 mod app;
-mod camera;
 mod commands;
 mod panels;
 mod render;
@@ -35,7 +34,7 @@ struct Args {
     #[arg(long)]
     screenshot: Option<PathBuf>,
     /// Colour the cloth by: plain, strain (structural), shear, bend, contact or speed.
-    #[arg(long, value_parser = ["plain", "strain", "shear", "bend", "contact", "speed"])]
+    #[arg(long, value_parser = cloth_view::ColorMode::NAMES)]
     color: Option<String>,
     /// Measure what each effect of the scene costs on the backend at start (the stats panel shows
     /// it; with --screenshot the run waits for it and prints it).
@@ -86,14 +85,7 @@ fn inspect(args: Args, headless_failed: Arc<AtomicBool>) -> Result<()> {
         scene: args.scene,
         backend: args.backend,
         screenshot: args.screenshot.map(|p| (args.frames, p)),
-        color: args.color.map(|c| match c.as_str() {
-            "strain" => render::ColorMode::Strain(cloth_core::SpringKind::Structural),
-            "shear" => render::ColorMode::Strain(cloth_core::SpringKind::Shear),
-            "bend" => render::ColorMode::Strain(cloth_core::SpringKind::Bend),
-            "contact" => render::ColorMode::Contact,
-            "speed" => render::ColorMode::Speed,
-            _ => render::ColorMode::Plain,
-        }),
+        color: args.color.and_then(|c| cloth_view::ColorMode::from_name(&c)),
         measure_effects: args.measure_effects,
         headless_failed,
     };

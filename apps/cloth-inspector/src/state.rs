@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use cloth_core::Scene;
 use serde::{Deserialize, Serialize};
 
-use crate::camera::OrbitCamera;
 use crate::render::ColorMode;
+use cloth_view::OrbitCamera;
 
 /// Persisted state.
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -13,20 +13,7 @@ use crate::intersections::triangles;
 pub fn wavefront_obj(positions: &[[f32; 3]], nx: u32, ny: u32, comment: &str) -> String {
     assert_eq!(positions.len(), nx as usize * ny as usize, "positions of an {nx} x {ny} grid");
     let tris = triangles(nx, ny);
-    // Each triangle adds its cross product (twice its area times its unit normal) to its
-    // vertices: the area-weighted mean direction.
-    let mut normals = vec![[0.0f64; 3]; positions.len()];
-    let at = |k: u32| positions[k as usize].map(f64::from);
-    for t in &tris {
-        let (a, b, c) = (at(t[0]), at(t[1]), at(t[2]));
-        let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
-        let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-        for &k in t {
-            for (s, x) in normals[k as usize].iter_mut().zip(n) {
-                *s += x;
-            }
-        }
-    }
+    let normals = crate::tessellation::cloth_normals(positions, nx, ny);
     let mut out = String::with_capacity(positions.len() * 80 + tris.len() * 40);
     for line in comment.lines() {
         out += &format!("# {line}\n");
@@ -35,8 +22,6 @@ pub fn wavefront_obj(positions: &[[f32; 3]], nx: u32, ny: u32, comment: &str) ->
         out += &format!("v {} {} {}\n", p[0], p[1], p[2]);
     }
     for n in &normals {
-        let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        let n = if length > 0.0 && length.is_finite() { n.map(|x| x / length) } else { [0.0, 0.0, 1.0] };
         out += &format!("vn {:.6} {:.6} {:.6}\n", n[0], n[1], n[2]);
     }
     for t in &tris {

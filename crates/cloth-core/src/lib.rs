@@ -21,7 +21,8 @@
 //! * [`simulator`]: the [`Simulator`] trait every backend implements;
 //! * [`energy`]: kinetic, elastic, gravitational and contact energy;
 //! * [`intersections`]: where the cloth passes through itself, counted exactly;
-//! * [`export`]: the cloth as a Wavefront OBJ.
+//! * [`export`]: the cloth as a Wavefront OBJ;
+//! * [`tessellation`]: the colliders as triangle meshes, and the cloth's vertex normals.
 //!
 //! ```
 //! use cloth_core::{Scene, Simulator, CpuSimulator};
@@ -59,6 +60,7 @@ pub mod self_collision;
 pub mod simulator;
 pub mod springs;
 pub mod stability;
+pub mod tessellation;
 pub mod validation;
 
 pub use effects::{Effect, EffectSet};

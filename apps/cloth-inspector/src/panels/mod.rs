@@ -6,6 +6,7 @@ pub mod cloth;
 pub mod contact;
 pub mod effect_costs;
 pub mod effects;
+pub mod export;
 pub mod scene;
 pub mod springs;
 pub mod stats;
