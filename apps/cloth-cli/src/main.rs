@@ -6,6 +6,7 @@
 //! * `cloth backends`: the backends compiled in and the adapters each can use;
 //! * `cloth bench`: ms per frame and vertex-substeps per second of each backend;
 //! * `cloth study accuracy`: what accuracy costs in time;
+//! * `cloth view FILE.glb`: a run exported as glTF read back, and a kept frame drawn;
 //! * `cloth figure`: the pictures of docs/model.md.
 
 /// Writes a line to standard output and returns the error instead of panicking on it (a full
@@ -69,6 +70,8 @@ enum Command {
     /// Studies (`cloth study accuracy`).
     #[command(subcommand)]
     Study(StudyCommand),
+    /// Read back a run exported to a .glb file: print what it holds, and draw a kept frame.
+    View(ViewArgs),
     /// Draw a picture of the model (docs/model.md's figures) as SVG.
     Figure {
         /// Which picture: the 12-spring stencil, or the friction decomposition.
@@ -136,6 +139,68 @@ struct RunArgs {
     /// reported maximum is then over the frames counted.
     #[arg(long, default_value_t = 1)]
     count_every: u32,
+}
+
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// A .glb file written by `cloth run --export`.
+    file: PathBuf,
+    /// The kept frame to draw (0: the start; default: the last).
+    #[arg(long)]
+    frame: Option<usize>,
+    /// Draw the frame into this PNG file, with the inspector's renderer.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Colour of the cloth: plain, strain (structural), shear, bend, contact or speed (the speed
+    /// from the kept frames' differences).
+    #[arg(long, default_value = "plain", value_parser = cloth_view::ColorMode::NAMES)]
+    color: String,
+}
+
+/// `cloth view`: the export read back ([`cloth_export::read`]) and drawn as `cloth run` draws.
+fn view(args: ViewArgs) -> Result<()> {
+    if let Some(png) = &args.png {
+        backends::output::check_writable(png)?;
+    }
+    let run = cloth_export::read::read_glb(&args.file)?;
+    let scene = &run.scene;
+    let [nx, ny] = scene.cloth.resolution;
+    let last = run.frames.len() - 1;
+    let (first, end) = (run.frames[0].0, run.frames[last].0);
+    out!("scene       {} ({nx} x {ny} vertices), run on {}", scene.name, run.backend)?;
+    out!("frames      {} kept, t = {first:.4} to {end:.4} s", run.frames.len())?;
+    let k = args.frame.unwrap_or(last);
+    if k > last {
+        bail!("--frame {k}: the export keeps frames 0 to {last}");
+    }
+    let (time_s, positions) = run.frames[k].clone();
+    // Velocities from the kept frames around it (what the speed and contact colours read).
+    let velocities = match (k.checked_sub(1).map(|j| &run.frames[j]), run.frames.get(k + 1)) {
+        (Some((t0, x0)), _) | (None, Some((t0, x0))) if *t0 != time_s => {
+            let dt = (time_s - t0) as f32;
+            positions.iter().zip(x0).map(|(x, y)| [0, 1, 2].map(|c| (x[c] - y[c]) / dt)).collect()
+        }
+        _ => vec![[0.0; 3]; positions.len()],
+    };
+    let state = cloth_core::ClothState { time_s, positions, velocities };
+    let crossings = intersections::count(&state.positions, nx, ny).ok();
+    out!(
+        "frame       {k} at t = {time_s:.4} s: centroid {:.4?} m; {} edge-triangle crossings of the cloth through itself",
+        state.centroid(),
+        crossings.map_or("uncounted".to_string(), |c| c.to_string())
+    )?;
+    if let Some(png) = &args.png {
+        let color = cloth_view::ColorMode::from_name(&args.color).expect("clap checks the name");
+        let mut painter = picture::Painter::new();
+        let size = [800, 600];
+        let pixels = painter.draw(&ClothModel::new(scene), &state, color, size)?;
+        backends::output::write_atomically(
+            png,
+            &picture::encode_png(&pixels, size[0], size[1], png::ColorType::Rgba)?,
+        )?;
+        out!("picture     {} (drawn by {})", png.display(), painter.description())?;
+    }
+    Ok(())
 }
 
 pub(crate) fn parse_grid(text: &str) -> Result<[u32; 2], String> {
@@ -206,6 +271,7 @@ fn command(cli: Cli) -> Result<()> {
         Command::Run(args) => run(args),
         Command::Check { scene, grid, substeps, backend } => check(&scene, grid, substeps, &backend),
         Command::Bench(args) => bench::run(args),
+        Command::View(args) => view(args),
         Command::Study(StudyCommand::Accuracy(args)) => study::accuracy(args),
         Command::Figure { figure, out } => {
             figure::write(figure, &out)?;
@@ -421,7 +487,10 @@ fn run(args: RunArgs) -> Result<()> {
     if let (Some(painter), Some(png)) = (&mut painter, &args.png) {
         let size = [800, 600];
         let pixels = painter.draw(&model, &state, color, size)?;
-        backends::output::write_atomically(png, &picture::encode_png(&pixels, size[0], size[1])?)?;
+        backends::output::write_atomically(
+            png,
+            &picture::encode_png(&pixels, size[0], size[1], png::ColorType::Rgba)?,
+        )?;
         if !args.json {
             out!("picture     {} (drawn by {})", png.display(), painter.description())?;
         }
@@ -487,7 +556,7 @@ mod tests {
             }
             Command::Bench(args) => bench::plan(args).map(|plan| plan.work),
             Command::Study(StudyCommand::Accuracy(args)) => study::plan(args).map(|plan| plan.work),
-            Command::Figure { .. } | Command::Backends => Ok(WorkPlan::default()),
+            Command::Figure { .. } | Command::Backends | Command::View(_) => Ok(WorkPlan::default()),
         }
     }
 

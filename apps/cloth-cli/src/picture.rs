@@ -99,11 +99,11 @@ fn framing(model: &ClothModel) -> OrbitCamera {
     OrbitCamera { target, distance: (1.25 * extent) as f32, ..OrbitCamera::default() }
 }
 
-/// RGBA8 `pixels` of `width × height` as a PNG file's bytes.
-pub fn encode_png(pixels: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
+/// 8-bit `pixels` of `width × height` in `color` (RGB or RGBA) as a PNG file's bytes.
+pub fn encode_png(pixels: &[u8], width: u32, height: u32, color: png::ColorType) -> Result<Vec<u8>> {
     let mut bytes = Vec::new();
     let mut encoder = png::Encoder::new(&mut bytes, width, height);
-    encoder.set_color(png::ColorType::Rgba);
+    encoder.set_color(color);
     encoder.set_depth(png::BitDepth::Eight);
     let mut writer = encoder.write_header().context("cannot encode the PNG header")?;
     writer.write_image_data(pixels).context("cannot encode the PNG data")?;

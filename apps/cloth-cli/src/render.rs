@@ -3,7 +3,6 @@
 //! (sphere-traced from their signed distances), seen by a perspective camera. Good enough to see a
 //! drape at a glance without any GPU; also the PNG encoder of the study's plots.
 
-use anyhow::Context;
 use cloth_core::colliders::{Collider, ColliderKind};
 use cloth_core::real::Vec3;
 use cloth_core::{ClothModel, ClothState};
@@ -75,18 +74,6 @@ const RAY_STEPS: usize = 128;
 fn shade(base: [f64; 3], lambert: f64) -> [f64; 3] {
     let l = 0.25 + 0.75 * lambert.clamp(0.0, 1.0);
     [base[0] * l, base[1] * l, base[2] * l]
-}
-
-/// RGB8 `pixels` of `width × height` as a PNG file's bytes.
-pub fn encode_png(pixels: &[u8], width: u32, height: u32) -> anyhow::Result<Vec<u8>> {
-    let mut bytes = Vec::new();
-    let mut encoder = png::Encoder::new(&mut bytes, width, height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().context("cannot encode the PNG header")?;
-    writer.write_image_data(pixels).context("cannot encode the PNG data")?;
-    writer.finish().context("cannot encode the PNG")?;
-    Ok(bytes)
 }
 
 /// Renders to RGB8 pixels.

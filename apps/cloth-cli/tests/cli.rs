@@ -109,6 +109,15 @@ fn run_exports_and_refuses_what_the_format_cannot_hold() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains(&format!("export      {} (3 frames, ", glb.display())), "{stdout}");
     assert_eq!(&std::fs::read(&glb).unwrap()[..4], b"glTF");
+    // Read back and drawn by `cloth view`.
+    let picture = dir.join("view.png");
+    let out = cloth(&["view", glb.to_str().unwrap(), "--png", picture.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("frames      3 kept, t = 0.0000 to 0.1000 s"), "{stdout}");
+    assert!(stdout.contains("frame       2 at t = 0.1000 s") && picture.is_file(), "{stdout}");
+    let out = cloth(&["view", glb.to_str().unwrap(), "--frame", "3"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--frame 3: the export keeps frames 0 to 2"));
     let folder = format!("{}/frames/", dir.display());
     let out = cloth(&["run", "--frames", "2", "--grid", "10x10", "--export", &folder]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

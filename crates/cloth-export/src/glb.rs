@@ -87,6 +87,16 @@ pub(crate) fn check_fits(path: &Path, scene: &Scene, frames: u32, every: u32) ->
     })
 }
 
+/// The key of the asset's extras under which the run is described.
+pub const EXTRAS_KEY: &str = "cloth_workbench";
+
+/// What [`crate::read`] needs to draw the run again: the scene as RON (its colliders, pins and
+/// grid) and the backend that ran it, in the asset's extras.
+fn embedded_run(scene: &Scene, source: &str) -> Result<Box<serde_json::value::RawValue>, ExportError> {
+    let value = serde_json::json!({ EXTRAS_KEY: { "scene_ron": scene.to_ron_string(), "backend": source } });
+    serde_json::value::to_raw_value(&value).map_err(|e| ExportError::Io(io::Error::other(e)))
+}
+
 /// Bounds of a list of points, per axis.
 fn bounds(points: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
     let mut low = [f32::INFINITY; 3];
@@ -150,7 +160,7 @@ impl GlbWriter {
                 generator: Some(format!("cloth workbench {}", env!("CARGO_PKG_VERSION"))),
                 copyright: None,
                 extensions: None,
-                extras: Default::default(),
+                extras: Some(embedded_run(scene, source)?),
                 min_version: None,
             },
             ..Default::default()
@@ -346,48 +356,14 @@ impl GlbWriter {
                 weights[k * targets + (k - 1)] = 1.0;
             }
             let output = self.accessor(bytemuck::cast_slice(&weights), Kind::Scalar, None)?;
-            samplers.push(json::animation::Sampler {
-                extensions: None,
-                extras: Default::default(),
-                input,
-                interpolation: Valid(json::animation::Interpolation::Linear),
-                output,
-            });
-            channels.push(json::animation::Channel {
-                sampler: json::Index::new(0),
-                target: json::animation::Target {
-                    extensions: None,
-                    extras: Default::default(),
-                    node: self.cloth_node,
-                    path: Valid(json::animation::Property::MorphTargetWeights),
-                },
-                extensions: None,
-                extras: Default::default(),
-            });
+            let property = json::animation::Property::MorphTargetWeights;
+            animate(&mut samplers, &mut channels, [input, output], self.cloth_node, property);
             for (collider, node) in self.moving_nodes.clone() {
                 let offsets: Vec<[f32; 3]> = (times.iter())
                     .map(|&t| self.scene.collider_offset_at(collider, f64::from(t)).map(|x| x as f32))
                     .collect();
                 let output = self.accessor(bytemuck::cast_slice(&offsets), Kind::Vec3Output, None)?;
-                let sampler = json::Index::new(samplers.len() as u32);
-                samplers.push(json::animation::Sampler {
-                    extensions: None,
-                    extras: Default::default(),
-                    input,
-                    interpolation: Valid(json::animation::Interpolation::Linear),
-                    output,
-                });
-                channels.push(json::animation::Channel {
-                    sampler,
-                    target: json::animation::Target {
-                        extensions: None,
-                        extras: Default::default(),
-                        node,
-                        path: Valid(json::animation::Property::Translation),
-                    },
-                    extensions: None,
-                    extras: Default::default(),
-                });
+                animate(&mut samplers, &mut channels, [input, output], node, json::animation::Property::Translation);
             }
             let mesh = &mut self.root.meshes[self.cloth_mesh.value()];
             mesh.primitives[0].targets = Some(std::mem::take(&mut self.targets));
@@ -439,6 +415,31 @@ impl GlbWriter {
         assembled.keep(&self.path)?;
         Ok(ExportSummary { path: self.path.clone(), frames: kept as u64, bytes: total })
     }
+}
+
+/// Adds a linearly interpolated sampler of `[input, output]` (times, values) and the channel
+/// that drives `property` of `node` with it.
+fn animate(
+    samplers: &mut Vec<json::animation::Sampler>,
+    channels: &mut Vec<json::animation::Channel>,
+    [input, output]: [json::Index<json::Accessor>; 2],
+    node: json::Index<json::Node>,
+    property: json::animation::Property,
+) {
+    let sampler = json::Index::new(samplers.len() as u32);
+    samplers.push(json::animation::Sampler {
+        extensions: None,
+        extras: Default::default(),
+        input,
+        interpolation: Valid(json::animation::Interpolation::Linear),
+        output,
+    });
+    channels.push(json::animation::Channel {
+        sampler,
+        target: json::animation::Target { extensions: None, extras: Default::default(), node, path: Valid(property) },
+        extensions: None,
+        extras: Default::default(),
+    });
 }
 
 /// A triangle primitive of `attributes` and `indices` in `material`.

@@ -7,7 +7,8 @@
 //!   morph targets (one a kept frame) on the simulated clock; Blender, three.js and every glTF
 //!   viewer import it;
 //! * [`folder`]: a folder of Wavefront OBJ files, one a kept frame (the cloth), one for the
-//!   colliders, and a CSV of the per-frame diagnostics for a notebook.
+//!   colliders, and a CSV of the per-frame diagnostics for a notebook;
+//! * [`read`]: a GLB read back (the scene it embeds and the positions of every kept frame).
 //!
 //! An export is planned before the run ([`ExportPlan::new`]: the target, the frames it keeps, a
 //! run too large for the format refused with the number of frames that fit), then fed the kept
@@ -40,6 +41,7 @@
 
 pub mod folder;
 pub mod glb;
+pub mod read;
 
 use std::io;
 use std::path::{Path, PathBuf};
@@ -88,6 +90,18 @@ pub enum ExportError {
         expected: usize,
         /// Vertices given.
         got: usize,
+    },
+    /// A state with NaN or infinite positions: no format holds it, and it means the step is
+    /// unstable.
+    #[error(
+        "the state at t = {time_s} s has {count} vertices that are NaN or infinite: the step is probably unstable \
+         (run `cloth check` and raise the substeps); the export is abandoned"
+    )]
+    NonFinite {
+        /// Simulated time of the state, s.
+        time_s: f64,
+        /// Vertices not finite.
+        count: usize,
     },
     /// More states recorded than planned.
     #[error("more kept frames recorded than the {planned} planned")]
@@ -244,6 +258,13 @@ pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
     temporary.keep(path)
 }
 
+fn check_finite(state: &ClothState) -> Result<(), ExportError> {
+    match state.non_finite_count() {
+        0 => Ok(()),
+        count => Err(ExportError::NonFinite { time_s: state.time_s, count }),
+    }
+}
+
 /// What an export wrote.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ExportSummary {
@@ -270,6 +291,7 @@ impl Exporter {
     /// # Errors
     /// A file that cannot be written (naming it).
     pub fn start(plan: &ExportPlan, scene: &Scene, initial: &ClothState, source: &str) -> Result<Self, ExportError> {
+        check_finite(initial)?;
         Ok(match &plan.target {
             ExportTarget::Glb(path) => Self::Glb(Box::new(glb::GlbWriter::start(path, plan, scene, initial, source)?)),
             ExportTarget::Folder(dir) => {
@@ -281,8 +303,9 @@ impl Exporter {
     /// Records the next kept state.
     ///
     /// # Errors
-    /// A state of another grid, more states than planned, or a write that failed.
+    /// A state of another grid or not finite, more states than planned, or a write that failed.
     pub fn record(&mut self, state: &ClothState) -> Result<(), ExportError> {
+        check_finite(state)?;
         match self {
             Self::Glb(w) => w.record(state),
             Self::Folder(w) => w.record(state),

@@ -101,6 +101,17 @@ fn a_glb_read_back_gives_the_simulated_positions_at_every_kept_frame() {
     }
     // The sphere is a mesh of its own.
     assert!(document.meshes().any(|m| m.name().is_some_and(|n| n.starts_with("collider 0 (sphere)"))));
+    // The workbench's own reader gives the same frames, and the scene they were run from.
+    let run = cloth_export::read::read_glb(&path).unwrap();
+    assert_eq!(run.scene, scene);
+    assert_eq!(run.frames.len(), kept.len());
+    for ((t, x), state) in run.frames.iter().zip(&kept) {
+        assert_eq!(*t, state.time_s as f32 as f64);
+        let worst = (x.iter().zip(&state.positions))
+            .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(worst <= 16.0 * f32::EPSILON, "{worst}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -270,5 +281,21 @@ fn an_export_abandoned_half_way_leaves_nothing_behind() {
     assert_eq!(names_in(&dir).len(), 1, "the binary chunk is spilled to one temporary file");
     drop(exporter);
     assert!(names_in(&dir).is_empty(), "{:?}", names_in(&dir));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_state_that_is_not_finite_abandons_the_export() {
+    let dir = folder("not-finite");
+    let scene = scene("drape.ron", [8, 8]);
+    let path = dir.join("run.glb");
+    let plan = ExportPlan::new(&path, &scene, 4, 1).unwrap();
+    let mut state = CpuSimulator::new(&scene).unwrap().read_state().unwrap();
+    let mut exporter = Exporter::start(&plan, &scene, &state, "cpu").unwrap();
+    state.positions[5][1] = f32::NAN;
+    let e = exporter.record(&state).unwrap_err().to_string();
+    assert!(e.contains("1 vertices that are NaN or infinite") && e.contains("raise the substeps"), "{e}");
+    drop(exporter);
+    assert!(names_in(&dir).is_empty());
     std::fs::remove_dir_all(&dir).unwrap();
 }

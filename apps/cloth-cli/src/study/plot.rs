@@ -97,7 +97,10 @@ pub fn write(study: &Study, svg: &Path, png: &Path) -> Result<()> {
     let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     draw(BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area(), study)
         .with_context(|| format!("cannot draw {}", png.display()))?;
-    Ok(cloth_backends::output::write_atomically(png, &crate::render::encode_png(&pixels, SIZE.0, SIZE.1)?)?)
+    Ok(cloth_backends::output::write_atomically(
+        png,
+        &crate::picture::encode_png(&pixels, SIZE.0, SIZE.1, png::ColorType::Rgb)?,
+    )?)
 }
 
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, study: &Study) -> Result<()>

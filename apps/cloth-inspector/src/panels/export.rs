@@ -2,7 +2,7 @@
 //! of OBJ frames with a CSV of diagnostics, in the background with a progress bar
 //! ([`cloth_export`]; the same choices as `cloth run --export FILE.glb|DIR/ --every N`).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -26,24 +26,27 @@ pub struct ExportJob {
     pub cancel: Arc<AtomicBool>,
 }
 
-/// Runs `frames` frames of `scene` from its start on `backend` and exports them to `path`
-/// (keeping every `every`-th), on a background thread. The plan is checked first (the target,
-/// the format's limits); the files are written whole, and a cancelled or failed export leaves no
-/// file under the final name.
-pub fn spawn_export(
-    scene: &Scene,
-    backend: &str,
-    tuning: &cloth_gpu::GpuTuning,
-    path: &Path,
-    frames: u32,
-    every: u32,
-) -> ExportJob {
-    let progress = Arc::new(Mutex::new(ExportProgress { total: frames, ..Default::default() }));
+/// What to export: `frames` frames of `scene` from its start on `backend`, to `path` (a `.glb`
+/// file or a folder), keeping every `every`-th.
+#[derive(Clone)]
+pub struct ExportRequest {
+    pub scene: Scene,
+    pub backend: String,
+    pub tuning: cloth_gpu::GpuTuning,
+    pub path: PathBuf,
+    pub frames: u32,
+    pub every: u32,
+}
+
+/// Runs `request` on a background thread. The plan is checked first (the target, the format's
+/// limits); the files are written whole, and a cancelled or failed export leaves no file under
+/// the final name.
+pub fn spawn_export(request: ExportRequest) -> ExportJob {
+    let progress = Arc::new(Mutex::new(ExportProgress { total: request.frames, ..Default::default() }));
     let cancel = Arc::new(AtomicBool::new(false));
     let job = ExportJob { progress: progress.clone(), cancel: cancel.clone() };
-    let (scene, backend, tuning, path) = (scene.clone(), backend.to_string(), tuning.clone(), path.to_path_buf());
     std::thread::spawn(move || {
-        let outcome = export(&scene, &backend, &tuning, &path, frames, every, &progress, &cancel);
+        let outcome = export(&request, &progress, &cancel);
         if let Ok(mut p) = progress.lock() {
             p.outcome = Some(outcome);
         }
@@ -51,20 +54,11 @@ pub fn spawn_export(
     job
 }
 
-#[allow(clippy::too_many_arguments)]
-fn export(
-    scene: &Scene,
-    backend: &str,
-    tuning: &cloth_gpu::GpuTuning,
-    path: &Path,
-    frames: u32,
-    every: u32,
-    progress: &Mutex<ExportProgress>,
-    cancel: &AtomicBool,
-) -> Result<String, String> {
-    let plan = cloth_export::ExportPlan::new(path, scene, frames, every).map_err(|e| e.to_string())?;
+fn export(request: &ExportRequest, progress: &Mutex<ExportProgress>, cancel: &AtomicBool) -> Result<String, String> {
+    let ExportRequest { scene, backend, tuning, path, frames, every } = request;
+    let plan = cloth_export::ExportPlan::new(path, scene, *frames, *every).map_err(|e| e.to_string())?;
     let mut work = cloth_core::budget::WorkPlan::default();
-    work.add(backend, scene, frames).map_err(|p| format!("frames: {p}"))?;
+    work.add(backend, scene, *frames).map_err(|p| format!("frames: {p}"))?;
     let factory = cloth_backends::find(backend)?.create;
     let mut sim = factory(scene, tuning).map_err(|e| format!("cannot start the {backend} backend: {e}"))?;
     let summary = cloth_export::run(&plan, scene, sim.as_mut(), |done| {
@@ -122,8 +116,14 @@ impl ExportPanel {
                 .on_hover_text("Runs the scene from its start on this backend in the background and writes the files")
                 .clicked()
             {
-                let path = PathBuf::from(self.target.trim());
-                self.job = Some(spawn_export(scene, backend, tuning, &path, self.frames, self.every));
+                self.job = Some(spawn_export(ExportRequest {
+                    scene: scene.clone(),
+                    backend: backend.to_string(),
+                    tuning: tuning.clone(),
+                    path: PathBuf::from(self.target.trim()),
+                    frames: self.frames,
+                    every: self.every,
+                }));
                 self.message = None;
             }
             if let Some(job) = &self.job
@@ -178,17 +178,25 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("cloth-inspector-export-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("drape.glb");
-        let job = spawn_export(&scene, "cpu", &Default::default(), &path, 6, 2);
+        let request = |path: &std::path::Path, frames, every| ExportRequest {
+            scene: scene.clone(),
+            backend: "cpu".into(),
+            tuning: Default::default(),
+            path: path.to_path_buf(),
+            frames,
+            every,
+        };
+        let job = spawn_export(request(&path, 6, 2));
         let message = wait(&job).unwrap();
         assert!(message.contains("(4 frames,") && path.is_file(), "{message}");
         std::fs::remove_file(&path).unwrap();
-        let job = spawn_export(&scene, "cpu", &Default::default(), &path, 1000, 1);
+        let job = spawn_export(request(&path, 1000, 1));
         job.cancel.store(true, Ordering::Relaxed);
         let message = wait(&job).unwrap_err();
         assert!(message.contains("cancelled"), "{message}");
         let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert!(left.is_empty(), "{left:?}");
-        let message = wait(&spawn_export(&scene, "cpu", &Default::default(), &dir.join("x.obj"), 6, 1)).unwrap_err();
+        let message = wait(&spawn_export(request(&dir.join("x.obj"), 6, 1))).unwrap_err();
         assert!(message.contains("give a file ending in .glb"), "{message}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
