@@ -419,6 +419,7 @@ fn run(args: RunArgs) -> Result<()> {
         None => None,
     };
     let (mut exporting, mut exported) = (std::time::Duration::ZERO, None);
+    let mut drawing = std::time::Duration::ZERO;
     let start = Instant::now();
     let mut counts = cloth_core::AdvanceCounts::default();
     let [nx, ny] = scene.cloth.resolution;
@@ -444,7 +445,7 @@ fn run(args: RunArgs) -> Result<()> {
         {
             let t = Instant::now();
             gif_frames.push(painter.draw(&model, &sim.read_state()?, color, gif_size)?);
-            exporting += t.elapsed();
+            drawing += t.elapsed();
         }
         // The export reads the kept frames back; its writing is not part of the simulation's time.
         if let (Some(exporter), Some(plan)) = (&mut exporter, &export)
@@ -462,7 +463,7 @@ fn run(args: RunArgs) -> Result<()> {
         exporting += t.elapsed();
     }
     let state = sim.read_state()?;
-    let wall = start.elapsed().saturating_sub(counting).saturating_sub(exporting);
+    let wall = start.elapsed().saturating_sub(counting).saturating_sub(exporting).saturating_sub(drawing);
     progress.finish_and_clear();
     let at_end = intersections::count(&state.positions, nx, ny).ok();
     let self_intersections =

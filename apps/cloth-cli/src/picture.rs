@@ -96,7 +96,7 @@ fn framing(model: &ClothModel) -> OrbitCamera {
     }
     let extent = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt().max(0.5);
     let target = [0, 1, 2].map(|k| ((lo[k] + hi[k]) / 2.0) as f32);
-    OrbitCamera { target, distance: (1.25 * extent) as f32, ..OrbitCamera::default() }
+    OrbitCamera { target, distance: (0.9 * extent) as f32, ..OrbitCamera::default() }
 }
 
 /// 8-bit `pixels` of `width × height` in `color` (RGB or RGBA) as a PNG file's bytes.
