@@ -479,7 +479,13 @@ fn run(args: RunArgs) -> Result<()> {
         wall,
         self_intersections,
     };
-    let report = report::Report::new(&*sim, &model, &measured);
+    let mut report = report::Report::new(&*sim, &model, &measured);
+    report.export = exported.as_ref().map(|summary| report::Export {
+        path: summary.path.display().to_string(),
+        frames: summary.frames,
+        bytes: summary.bytes,
+        seconds: exporting.as_secs_f64(),
+    });
     if args.json {
         out!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
@@ -518,15 +524,15 @@ fn run(args: RunArgs) -> Result<()> {
             out!("mesh        {}", obj.display())?;
         }
     }
-    if let Some(summary) = &exported
+    if let Some(export) = &report.export
         && !args.json
     {
         out!(
             "export      {} ({} frames, {:.1} MiB, written in {:.2} s)",
-            summary.path.display(),
-            summary.frames,
-            mib(summary.bytes),
-            exporting.as_secs_f64()
+            export.path,
+            export.frames,
+            mib(export.bytes),
+            export.seconds
         )?;
     }
     if report.nan_count > 0 {

@@ -37,6 +37,19 @@ pub struct CandidateLists {
     pub overflowed_lists: u64,
 }
 
+/// What `--export` wrote.
+#[derive(Clone, Debug, Serialize)]
+pub struct Export {
+    /// The file or folder.
+    pub path: String,
+    /// Frames kept, the start included.
+    pub frames: u64,
+    /// Bytes written.
+    pub bytes: u64,
+    /// Wall-clock time spent reading the kept frames back and writing them, s.
+    pub seconds: f64,
+}
+
 /// What a run measured.
 pub struct Measured<'a> {
     pub state: &'a ClothState,
@@ -74,6 +87,8 @@ pub struct Report {
     pub self_intersections: SelfIntersections,
     /// With `SelfCollision` on a GPU backend: its candidate lists' checks and rebuilds.
     pub self_collision_lists: Option<CandidateLists>,
+    /// With `--export`: what was written (set by the caller once the export is finished).
+    pub export: Option<Export>,
     pub final_kinetic_energy_j: f64,
     pub final_total_energy_j: f64,
     pub final_centroid_m: [f64; 3],
@@ -126,6 +141,7 @@ impl Report {
                 rebuilds: l.rebuilds,
                 overflowed_lists: l.overflowed_lists,
             }),
+            export: None,
             final_kinetic_energy_j: energy.kinetic,
             final_total_energy_j: energy.total(),
             final_centroid_m: state.centroid(),

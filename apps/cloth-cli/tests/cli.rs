@@ -82,6 +82,29 @@ fn run_draws_a_png_with_the_inspectors_renderer() {
     let _ = std::fs::remove_file(path);
 }
 
+/// Without any Vulkan device (the loader pointed at no driver), `--png` falls back to the CPU
+/// rasteriser and says so.
+#[test]
+fn without_a_vulkan_device_the_png_is_drawn_on_the_cpu_and_the_run_says_so() {
+    let path = std::env::temp_dir().join(format!("cloth-cli-test-fallback-{}.png", std::process::id()));
+    let out = Command::new(env!("CARGO_BIN_EXE_cloth"))
+        .args(["run", "--frames", "3", "--grid", "12x12", "--png", path.to_str().unwrap()])
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        stdout.contains("drawn by the CPU rasteriser (flat shading, no ground, plain colour: no Vulkan device"),
+        "{stdout}"
+    );
+    let (_, width, height) = decode_png(&std::fs::read(&path).unwrap());
+    assert_eq!((width, height), (800, 600));
+    let _ = std::fs::remove_file(path);
+}
+
 /// `--gif` writes an animation of the run, and `--color` picks the cloth's colours.
 #[test]
 fn run_draws_an_animated_gif() {
@@ -119,8 +142,8 @@ fn run_exports_and_refuses_what_the_format_cannot_hold() {
     let out = cloth(&["view", glb.to_str().unwrap(), "--frame", "3"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("--frame 3: the export keeps frames 0 to 2"));
     let folder = format!("{}/frames/", dir.display());
-    let out = cloth(&["run", "--frames", "2", "--grid", "10x10", "--export", &folder]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v = json(&["run", "--frames", "2", "--grid", "10x10", "--json", "--export", &folder]);
+    assert_eq!((v["export"]["path"].as_str(), v["export"]["frames"].as_u64()), (Some(folder.as_str()), Some(3)), "{v}");
     assert!(dir.join("frames/diagnostics.csv").is_file() && dir.join("frames/frame_00002.obj").is_file());
     let big = dir.join("big.glb");
     let out = cloth(&[
