@@ -23,7 +23,7 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 rest_lengths;  // m: structural along u, along v, shear (bend: twice the structural)
     vec4 self_contact;  // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     vec4 self_hash;     // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
-    uvec4 self_table;   // buckets T; first link; first position at the rebuild; unused (cloth_gpu::layout::SelfHashTable)
+    uvec4 self_table;   // buckets T; first record (position at the rebuild, link); unused; unused (cloth_gpu::layout::SelfHashTable)
     vec4 self_lists;    // the margin less its rounding share, m; lookahead, m; substeps between checks
 } params;
 

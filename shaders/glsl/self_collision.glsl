@@ -39,9 +39,9 @@ uint heads_of(uint rebuilds) {
     return (rebuilds & 1u) * params.self_table.x;
 }
 
-// The vertex listed after vertex j in its bucket (NO_VERTEX: none).
+// The vertex listed after vertex j in its bucket (NO_VERTEX: none): the last word of j's record.
 uint next_listed(uint j) {
-    return link(params.self_table.y + j);
+    return link(params.self_table.y + 4u * j + 3u);
 }
 
 // The distances from x to the low faces of its cell `base`, per axis, m (the high faces are h
@@ -92,9 +92,10 @@ uint candidate(uint i, uint k) {
     return self_words[params.vertex_count * (k + 1u) + i];
 }
 
-// Where vertex j was at the last rebuild, m (the bits of three floats in the hash's words).
+// Where vertex j was at the last rebuild, m (the bits of three floats, the first words of j's
+// record).
 vec3 rebuild_position(uint j) {
-    uint at = params.self_table.z + 4u * j;
+    uint at = params.self_table.y + 4u * j;
     return uintBitsToFloat(uvec3(link(at), link(at + 1u), link(at + 2u)));
 }
 

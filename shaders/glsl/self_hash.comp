@@ -9,7 +9,7 @@
 //                 fully when the bound plus the lookahead reaches the margin (a rebuild, which
 //                 flips the table of heads the rebuild fills), else zero;
 //   3 forced:     the same, always rebuilding (the first substep, a written state);
-//   0 insert:     every vertex writes its position and pushes itself onto its bucket's list
+//   0 insert:     every vertex writes its record (its position and link) and pushes itself onto its bucket's list
 //                 (an atomic exchange of the bucket's head), and clears its share of the other
 //                 table of heads, the one the next rebuild fills;
 //   1 candidates: every vertex lists its far partners within the window r + W (the cell side),
@@ -27,9 +27,9 @@ layout(constant_id = 111) const uint HASH_PASS = 0u;
 
 // The state the rebuild lists: the positions at the start of the substep it comes before.
 layout(set = 0, binding = 1, std430) readonly buffer Positions { vec4 positions[]; };
-// The hash's words (the heads, the links, the positions at the rebuild), written by the insert
-// pass and read by the candidates pass: each binds the buffer at its own binding and a
-// placeholder at the other (a dispatch may not both write and read a buffer through two bindings).
+// The hash's words (the heads, and each vertex's record: its position at the rebuild and its
+// link), written by the insert pass and read by the candidates pass: each binds the buffer at its
+// own binding and a placeholder at the other (a dispatch may not both write and read a buffer through two bindings).
 layout(set = 0, binding = 2, std430) buffer SelfLinks { uint self_links[]; };
 layout(set = 0, binding = 3, std430) readonly buffer SelfLinksRead { uint self_links_read[]; };
 layout(set = 0, binding = 4, std430) buffer SelfWords { uint self_words[]; };
@@ -102,12 +102,12 @@ void insert(uint i, uint rebuilds) {
     }
     vec3 x = positions[i].xyz;
     uvec3 bits = floatBitsToUint(x);
-    uint at = params.self_table.z + 4u * i;
+    uint at = params.self_table.y + 4u * i;
     for (uint k = 0u; k < 3u; k++) {
         self_links[at + k] = bits[k];
     }
     uint head = atomicExchange(self_links[heads + hash_bucket(hash_cell(x))], i);
-    self_links[params.self_table.y + i] = head;
+    self_links[at + 3u] = head;
 }
 
 // Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex

@@ -23,7 +23,7 @@ struct SimParams {
     rest_lengths: vec4<f32>, // m: structural along u, along v, shear (bend: twice the structural)
     self_contact: vec4<f32>, // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     self_hash: vec4<f32>,    // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
-    self_table: vec4<u32>,   // buckets T; first link; first position at the rebuild; unused (cloth_gpu::layout::SelfHashTable)
+    self_table: vec4<u32>,   // buckets T; first record (position at the rebuild, link); unused; unused (cloth_gpu::layout::SelfHashTable)
     self_lists: vec4<f32>,   // the margin less its rounding share, m; lookahead, m; substeps between checks
 }
 

@@ -35,9 +35,9 @@ fn heads_of(rebuilds: u32) -> u32 {
     return (rebuilds & 1u) * params.self_table.x;
 }
 
-// The vertex listed after vertex j in its bucket (NO_VERTEX: none).
+// The vertex listed after vertex j in its bucket (NO_VERTEX: none): the last word of j's record.
 fn next_listed(j: u32) -> u32 {
-    return link(params.self_table.y + j);
+    return link(params.self_table.y + 4u * j + 3u);
 }
 
 // The distances from x to the low and the high faces of its cell `base`, per axis, m: how far
@@ -95,9 +95,9 @@ fn candidate(i: u32, k: u32) -> u32 {
     return self_words[params.vertex_count * (k + 1u) + i];
 }
 
-// Where vertex j was at the last rebuild, m (the bits of three f32 in the hash's words).
+// Where vertex j was at the last rebuild, m (the bits of three f32, the first words of j's record).
 fn rebuild_position(j: u32) -> vec3<f32> {
-    let at = params.self_table.z + 4u * j;
+    let at = params.self_table.y + 4u * j;
     return bitcast<vec3<f32>>(vec3<u32>(link(at), link(at + 1u), link(at + 2u)));
 }
 

@@ -5,7 +5,7 @@
 //                 fully when the bound plus the lookahead reaches the margin (a rebuild, which
 //                 flips the table of heads the rebuild fills), else zero;
 //   3 forced:     the same, always rebuilding (the first substep, a written state);
-//   0 insert:     every vertex writes its position and pushes itself onto its bucket's list
+//   0 insert:     every vertex writes its record (its position and link) and pushes itself onto its bucket's list
 //                 (an atomic exchange of the bucket's head), and clears its share of the other
 //                 table of heads, the one the next rebuild fills;
 //   1 candidates: every vertex lists its far partners within the window r + W (the cell side),
@@ -19,9 +19,9 @@ override HASH_PASS: u32 = 0u;
 @group(0) @binding(0) var<uniform> params: SimParams;
 // The state the rebuild lists: the positions at the start of the substep it comes before.
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
-// The hash's words (the heads, the links, the positions at the rebuild), written by the insert
-// pass and read by the candidates pass: each binds the buffer at its own binding and a
-// placeholder at the other (a dispatch may not both write and read a buffer through two bindings).
+// The hash's words (the heads, and each vertex's record: its position at the rebuild and its
+// link), written by the insert pass and read by the candidates pass: each binds the buffer at its
+// own binding and a placeholder at the other (a dispatch may not both write and read a buffer through two bindings).
 @group(0) @binding(2) var<storage, read_write> self_links: array<atomic<u32>>;
 @group(0) @binding(3) var<storage, read> self_links_read: array<u32>;
 @group(0) @binding(4) var<storage, read_write> self_words: array<u32>;
@@ -92,12 +92,12 @@ fn insert(i: u32, rebuilds: u32) {
     }
     let x = positions[i].xyz;
     let bits = bitcast<vec3<u32>>(x);
-    let at = params.self_table.z + 4u * i;
+    let at = params.self_table.y + 4u * i;
     for (var k = 0u; k < 3u; k++) {
         atomicStore(&self_links[at + k], bits[k]);
     }
     let head = atomicExchange(&self_links[heads + hash_bucket(hash_cell(x))], i);
-    atomicStore(&self_links[params.self_table.y + i], head);
+    atomicStore(&self_links[at + 3u], head);
 }
 
 // Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex

@@ -99,8 +99,8 @@ gpu_struct! {
         /// Self-collision: the candidate window `r + W`, the cell side of the hash, m; the speed
         /// limit `s_max`, m/s; the grid spacing along u and v, m (the rest-distance filter).
         self_hash: [f32; 4],
-        /// The hash in its buffer ([`SelfHashTable`]): buckets `T`, the index of the first link,
-        /// the index of the first position at the rebuild; unused.
+        /// The hash in its buffer ([`SelfHashTable`]): buckets `T`, the index of the first
+        /// record; unused, unused.
         self_table: [u32; 4],
         /// Self-collision's checks: the margin less its rounding share, `(1 − 2⁻¹⁰) W`, m; the
         /// lookahead `L`, m; the substeps between two checks `C` (`cloth_core::self_collision`);
@@ -120,17 +120,16 @@ pub const PIN_MOTION_WORDS: usize = 4;
 ///
 /// The hash, a `u32` buffer (the "links"): two tables of `T` bucket heads (the rebuilds alternate
 /// between them: rebuild `m` fills table `m mod 2` and clears the other for the next), then one
-/// link a vertex (the vertex listed after it in its bucket), then each vertex's position at the
-/// rebuild (the bits of three `f32`, m, and one unused word). A bucket lists its vertices from its
-/// head through the links; `u32::MAX` ends a list.
+/// 16-byte record a vertex: its position at the rebuild (the bits of three `f32`, m) and its link
+/// (the vertex listed after it in its bucket). A bucket lists its vertices from its head through
+/// the links; `u32::MAX` ends a list. A search reads a listed vertex's position and its link
+/// together, one 16-byte load from one memory sector.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SelfHashTable {
     /// Buckets `T`.
     pub buckets: u32,
-    /// Index of the first link.
-    pub links: u32,
-    /// Index of the first position at the rebuild (a multiple of 4: 16-byte aligned).
-    pub positions: u32,
+    /// Index of the first record (a multiple of 4: 16-byte aligned).
+    pub records: u32,
     /// Words of the hash.
     pub link_words: u64,
     /// Words of the candidate lists.
@@ -141,22 +140,15 @@ impl SelfHashTable {
     /// The hash and lists of `scene`'s vertices.
     pub fn of(scene: &Scene) -> Self {
         let buckets = cloth_core::self_collision::SelfCollisionQuantities::of(scene).buckets.max(4);
-        let n = scene.vertex_count() as u32;
-        let links = 2 * buckets;
-        let positions = (links + n).next_multiple_of(4);
-        Self {
-            buckets,
-            links,
-            positions,
-            link_words: positions as u64 + 4 * n as u64,
-            list_words: (1 + LIST_CAPACITY as u64) * n as u64,
-        }
+        let n = scene.vertex_count() as u64;
+        let records = (2 * buckets).next_multiple_of(4);
+        Self { buckets, records, link_words: records as u64 + 4 * n, list_words: (1 + LIST_CAPACITY as u64) * n }
     }
 
-    /// The hash's initial words: every head empty (`u32::MAX`), the rest zero.
+    /// The hash's initial words: every head empty (`u32::MAX`), the records zero.
     pub fn initial_links(&self) -> Vec<u32> {
         let mut words = vec![0; self.link_words as usize];
-        words[..self.links as usize].fill(u32::MAX);
+        words[..2 * self.buckets as usize].fill(u32::MAX);
         words
     }
 }
@@ -338,7 +330,7 @@ impl GpuSimParams {
             rest_lengths: v4(q.rest_lengths, 0.0),
             self_contact: [f(s.thickness), f(s.stiffness), f(s.damping), f(s.friction)],
             self_hash: [f(s.window), f(s.max_speed), f(s.spacing[0]), f(s.spacing[1])],
-            self_table: [table.buckets, table.links, table.positions, 0],
+            self_table: [table.buckets, table.records, 0, 0],
             self_lists: [
                 f(s.margin * (1.0 - cloth_core::self_collision::MARGIN_ROUNDING)),
                 f(s.lookahead),
