@@ -430,29 +430,38 @@ fn run(args: RunArgs) -> Result<()> {
         counts.frames += c.frames;
         counts.submissions += c.submissions;
         counts.host_waits += c.host_waits;
-        // The self-intersections of every `count_every`-th frame, from a read-back of its
-        // positions; the counting is not part of the simulation's time.
-        if args.count_every > 0 && (done + 1) % args.count_every == 0 {
-            let positions = sim.read_state()?.positions;
+        // One read-back serves the frame's count, picture and export. The count's read-back is
+        // part of the simulation's time, as the report says; the counting, the drawing and the
+        // export's writing are not (nor a read-back only they need).
+        let counted = args.count_every > 0 && (done + 1) % args.count_every == 0;
+        let drawn = args.gif.is_some() && (done + 1) % gif_every == 0;
+        let kept = export.as_ref().is_some_and(|plan| plan.keeps(done + 1));
+        if !(counted || drawn || kept) {
+            progress.set_position(done as u64 + 1);
+            continue;
+        }
+        let t = Instant::now();
+        let state = sim.read_state()?;
+        match (counted, kept) {
+            (true, _) => {}
+            (false, true) => exporting += t.elapsed(),
+            (false, false) => drawing += t.elapsed(),
+        }
+        if counted {
             let t = Instant::now();
             // A frame that cannot be counted leaves the maximum over the frames unknown.
-            let crossings = intersections::count(&positions, nx, ny).ok();
+            let crossings = intersections::count(&state.positions, nx, ny).ok();
             most_crossings = most_crossings.zip(crossings).map(|(a, b)| a.max(b));
             counting += t.elapsed();
         }
-        if let (Some(painter), Some(_)) = (&mut painter, &args.gif)
-            && (done + 1) % gif_every == 0
-        {
+        if let (Some(painter), true) = (&mut painter, drawn) {
             let t = Instant::now();
-            gif_frames.push(painter.draw(&model, &sim.read_state()?, color, gif_size)?);
+            gif_frames.push(painter.draw(&model, &state, color, gif_size)?);
             drawing += t.elapsed();
         }
-        // The export reads the kept frames back; its writing is not part of the simulation's time.
-        if let (Some(exporter), Some(plan)) = (&mut exporter, &export)
-            && plan.keeps(done + 1)
-        {
+        if let (Some(exporter), true) = (&mut exporter, kept) {
             let t = Instant::now();
-            exporter.record(&sim.read_state()?)?;
+            exporter.record(&state)?;
             exporting += t.elapsed();
         }
         progress.set_position(done as u64 + 1);

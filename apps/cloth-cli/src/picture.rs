@@ -74,9 +74,17 @@ impl Painter {
     }
 }
 
-/// The inspector's default view direction, framing the scene's colliders and the cloth's initial
-/// rectangle (so pictures of one scene compare).
+/// The inspector's default view direction, framing [`scene_bounds`].
 fn framing(model: &ClothModel) -> OrbitCamera {
+    let (lo, hi) = scene_bounds(model);
+    let extent = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt().max(0.5);
+    let target = [0, 1, 2].map(|k| ((lo[k] + hi[k]) / 2.0) as f32);
+    OrbitCamera { target, distance: (0.9 * extent) as f32, ..OrbitCamera::default() }
+}
+
+/// The box (m, per axis) of the scene's bounded colliders and the cloth's initial rectangle: what
+/// both renderers frame, so pictures of one scene compare whatever the cloth did.
+pub fn scene_bounds(model: &ClothModel) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     let mut grow = |p: [f64; 3]| {
@@ -94,9 +102,7 @@ fn framing(model: &ClothModel) -> OrbitCamera {
     for p in &model.grid.positions {
         grow(*p);
     }
-    let extent = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt().max(0.5);
-    let target = [0, 1, 2].map(|k| ((lo[k] + hi[k]) / 2.0) as f32);
-    OrbitCamera { target, distance: (0.9 * extent) as f32, ..OrbitCamera::default() }
+    (lo, hi)
 }
 
 /// 8-bit `pixels` of `width × height` in `color` (RGB or RGBA) as a PNG file's bytes.

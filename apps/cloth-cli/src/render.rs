@@ -80,24 +80,7 @@ fn shade(base: [f64; 3], lambert: f64) -> [f64; 3] {
 pub fn render(model: &ClothModel, state: &ClothState, width: usize, height: usize) -> Vec<u8> {
     let scene = &model.scene;
     let positions: Vec<V3> = state.positions.iter().map(|p| p.map(f64::from)).collect();
-    // Frame the colliders and the cloth's initial rectangle, so pictures of one scene compare.
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    let mut grow = |p: V3, r: f64| {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k] - r);
-            hi[k] = hi[k].max(p[k] + r);
-        }
-    };
-    for c in &scene.colliders {
-        if let Some((low, high)) = c.shape.bounds() {
-            grow(low, 0.0);
-            grow(high, 0.0);
-        }
-    }
-    for p in &model.grid.positions {
-        grow(*p, 0.0);
-    }
+    let (lo, hi) = crate::picture::scene_bounds(model);
     let solid = scene.colliders.iter().any(|c| c.shape.bounds().is_some());
     let drop = if solid { 0.2 * (hi[1] - lo[1]) } else { 0.0 };
     let target = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0 - drop, (lo[2] + hi[2]) / 2.0];

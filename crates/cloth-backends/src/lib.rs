@@ -3,12 +3,12 @@
 //! The backends compiled into the workbench, by name: what `cloth backends` lists, what
 //! `--backend NAME` picks, and what the inspector offers; and what the apps share besides: the
 //! benchmarks' measurements (`throughput`, `effect_cost`, `timing`) and how they write files
-//! (`output`).
+//! (`output`, which is `cloth_core::output`).
 
 #![warn(missing_docs)]
 
 pub mod effect_cost;
-pub mod output;
+pub use cloth_core::output;
 pub mod throughput;
 pub mod timing;
 

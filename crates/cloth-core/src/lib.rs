@@ -22,6 +22,7 @@
 //! * [`energy`]: kinetic, elastic, gravitational and contact energy;
 //! * [`intersections`]: where the cloth passes through itself, counted exactly;
 //! * [`export`]: the cloth as a Wavefront OBJ;
+//! * [`output`]: files written whole or not at all (a temporary file renamed into place);
 //! * [`tessellation`]: the colliders as triangle meshes, and the cloth's vertex normals.
 //!
 //! ```
@@ -52,6 +53,7 @@ pub mod intersections;
 pub mod mesh;
 pub mod model;
 pub mod motion;
+pub mod output;
 pub mod quantities;
 pub mod real;
 pub mod reference;

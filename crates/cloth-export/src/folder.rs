@@ -18,7 +18,9 @@ use cloth_core::colliders::Collider;
 use cloth_core::real::Vec3;
 use cloth_core::{ClothModel, ClothState, Effect, Energy, Scene};
 
-use crate::{ExportError, ExportPlan, ExportSummary, cannot_write, temporary_beside, write_atomically};
+use cloth_core::output::{cannot_write, temporary_beside, write_atomically};
+
+use crate::{ExportError, ExportPlan, ExportSummary};
 
 /// The CSV's header.
 pub const CSV_HEADER: &str = "frame,time_s,kinetic_energy_j,elastic_energy_j,deepest_penetration_m,self_intersections";
@@ -31,7 +33,7 @@ pub(crate) fn check_writable(dir: &Path) -> std::io::Result<()> {
         return Err(cannot_write(dir, "it is a file, not a folder", std::io::ErrorKind::NotADirectory));
     }
     std::fs::create_dir_all(dir).map_err(|e| cannot_write(dir, &e, e.kind()))?;
-    let probe = temporary_beside(&dir.join("probe"), "");
+    let probe = temporary_beside(&dir.join("probe"));
     std::fs::write(&probe, b"").and_then(|()| std::fs::remove_file(&probe)).map_err(|e| cannot_write(dir, &e, e.kind()))
 }
 

@@ -26,7 +26,9 @@ use gltf_json as json;
 use json::validation::Checked::Valid;
 use json::validation::USize64;
 
-use crate::{ExportError, ExportPlan, ExportSummary, Temporary, cannot_write, temporary_beside};
+use cloth_core::output::{cannot_write, temporary_beside};
+
+use crate::{ExportError, ExportPlan, ExportSummary, Temporary};
 
 /// The largest GLB, bytes: its header and chunk lengths are 32-bit.
 pub const MAX_GLB_BYTES: u64 = u32::MAX as u64;
@@ -152,7 +154,8 @@ impl GlbWriter {
         if initial.positions.len() != scene.vertex_count() {
             return Err(ExportError::WrongState { expected: scene.vertex_count(), got: initial.positions.len() });
         }
-        let spill = Temporary::new(temporary_beside(path, ".bin"));
+        // The binary chunk's spill file: `.NAME.PID.bin.tmp` beside the final file.
+        let spill = Temporary::new(temporary_beside(path).with_extension("bin.tmp"));
         let file = std::fs::File::create(&spill.path).map_err(|e| cannot_write(path, &e, e.kind()))?;
         let mut root = json::Root {
             asset: json::Asset {
@@ -394,7 +397,7 @@ impl GlbWriter {
             )
             .into());
         }
-        let assembled = Temporary::new(temporary_beside(&self.path, ""));
+        let assembled = Temporary::new(temporary_beside(&self.path));
         let write = || -> io::Result<()> {
             let file = std::fs::File::create(&assembled.path)?;
             let mut out = BufWriter::with_capacity(1 << 20, file);

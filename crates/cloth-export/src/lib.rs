@@ -46,6 +46,7 @@ pub mod read;
 use std::io;
 use std::path::{Path, PathBuf};
 
+use cloth_core::output;
 use cloth_core::{ClothState, Scene, Simulator};
 
 /// What went wrong planning or writing an export. Each names what to change.
@@ -120,11 +121,6 @@ pub enum ExportError {
     Io(#[from] io::Error),
 }
 
-/// `cannot write PATH: why`, keeping the kind of `error`.
-pub(crate) fn cannot_write(path: &Path, error: impl std::fmt::Display, kind: io::ErrorKind) -> io::Error {
-    io::Error::new(kind, format!("cannot write {}: {error}", path.display()))
-}
-
 /// Where an export goes.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ExportTarget {
@@ -185,7 +181,7 @@ impl ExportPlan {
         match &plan.target {
             ExportTarget::Glb(path) => {
                 glb::check_fits(path, scene, frames, every)?;
-                check_writable(path)?;
+                output::check_writable(path)?;
             }
             ExportTarget::Folder(dir) => folder::check_writable(dir)?,
         }
@@ -203,25 +199,6 @@ impl ExportPlan {
     }
 }
 
-/// A temporary path in `path`'s folder, unique to this process and `tag`: renamed over `path`
-/// when the file is complete.
-pub(crate) fn temporary_beside(path: &Path, tag: &str) -> PathBuf {
-    let name = path.file_name().map_or_else(|| "export".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.{}{tag}.tmp", std::process::id()))
-}
-
-/// Checks that a new file can be written beside `path` (its folder exists and takes files), and
-/// that `path` is not a folder.
-fn check_writable(path: &Path) -> io::Result<()> {
-    if path.is_dir() {
-        return Err(cannot_write(path, "it is a folder; give a file name", io::ErrorKind::IsADirectory));
-    }
-    let probe = temporary_beside(path, ".probe");
-    std::fs::write(&probe, b"")
-        .and_then(|()| std::fs::remove_file(&probe))
-        .map_err(|e| cannot_write(path, &e, e.kind()))
-}
-
 /// A file being written: removed unless [`Temporary::keep`] renames it into place.
 pub(crate) struct Temporary {
     pub(crate) path: PathBuf,
@@ -233,13 +210,10 @@ impl Temporary {
         Self { path, done: false }
     }
 
-    /// Renames the complete file to `to`.
+    /// Renames the complete file to `to` ([`output::rename_into_place`]).
     pub(crate) fn keep(mut self, to: &Path) -> io::Result<()> {
         self.done = true;
-        std::fs::rename(&self.path, to).map_err(|e| {
-            let _ = std::fs::remove_file(&self.path);
-            cannot_write(to, &e, e.kind())
-        })
+        output::rename_into_place(&self.path, to)
     }
 }
 
@@ -249,13 +223,6 @@ impl Drop for Temporary {
             let _ = std::fs::remove_file(&self.path);
         }
     }
-}
-
-/// Writes `bytes` to `path` whole: a temporary file beside it, renamed into place.
-pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let temporary = Temporary::new(temporary_beside(path, ""));
-    std::fs::write(&temporary.path, bytes).map_err(|e| cannot_write(path, &e, e.kind()))?;
-    temporary.keep(path)
 }
 
 fn check_finite(state: &ClothState) -> Result<(), ExportError> {

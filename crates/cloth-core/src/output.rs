@@ -9,7 +9,7 @@ use std::io;
 use std::path::{Path, PathBuf};
 
 /// `cannot write PATH: why`, keeping the kind of `error`.
-fn cannot_write(path: &Path, error: impl std::fmt::Display, kind: io::ErrorKind) -> io::Error {
+pub fn cannot_write(path: &Path, error: impl std::fmt::Display, kind: io::ErrorKind) -> io::Error {
     io::Error::new(kind, format!("cannot write {}: {error}", path.display()))
 }
 
