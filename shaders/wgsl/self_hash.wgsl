@@ -9,7 +9,8 @@
 //                 (an atomic exchange of the bucket's head), and clears its share of the other
 //                 table of heads, the one the next rebuild fills;
 //   1 candidates: every vertex lists its far partners within the window r + W (the cell side),
-//                 in increasing index.
+//                 in increasing index, each of the 27 cells it searches walked by its own
+//                 invocation.
 // Prepended with layout.wgsl and self_collision.wgsl; no effect or collider constant applies, and
 // the workgroup holds 256 invocations whatever the tuning's workgroup size.
 
@@ -39,6 +40,14 @@ fn link(at: u32) -> u32 {
 var<workgroup> box_keys: array<atomic<u32>, 6>;
 // The rebuilds so far, read once a workgroup (the insert and candidates passes).
 var<workgroup> rebuilds_so_far: u32;
+// Vertices the candidates pass lists a workgroup, and invocations a vertex
+// (cloth_gpu::layout::{LISTING_VERTICES, LISTING_LANES}): LISTING_LANES is LIST_CAPACITY, so each
+// lane writes at most one candidate.
+const LISTING_VERTICES: u32 = 8u;
+const LISTING_LANES: u32 = 32u;
+// The candidates pass's candidates of each of its vertices, as the lanes find them, and their counts.
+var<workgroup> found: array<array<u32, LIST_CAPACITY>, LISTING_VERTICES>;
+var<workgroup> found_count: array<atomic<u32>, LISTING_VERTICES>;
 
 // Passes 2 and 3, one workgroup (cloth_core::self_collision::{MotionBound, rebuild_due}): the
 // first MOTION_COPIES invocations gather the copies of the box (and clear them), the first
@@ -100,42 +109,58 @@ fn insert(i: u32, rebuilds: u32) {
     atomicStore(&self_links[at + 3u], head);
 }
 
-// Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex
-// with more than LIST_CAPACITY keeps the count only, and counts in self_control.overflows.
-fn list_candidates(i: u32, rebuilds: u32) {
-    var list: array<u32, LIST_CAPACITY>;
-    var count = 0u;
-    let search = far_search(i, rebuild_position(i), heads_of(rebuilds));
-    for (var c = 0u; c < 27u; c++) {
-        let cell = far_cell(search, c);
+// Pass 1: the candidates of LISTING_VERTICES vertices a workgroup, LISTING_LANES invocations a
+// vertex, one a cell of the 27 searched (cloth_gpu::layout::LISTING_VERTICES): a rebuild's time is
+// the latency of walking the buckets' lists one record after the other, so each cell's list is
+// walked by its own invocation. The lanes gather a vertex's candidates in `found`; each lane then
+// writes one at its rank, so the list is in increasing index (a vertex lies in one cell, so no
+// candidate comes twice). A vertex with more than LIST_CAPACITY keeps the count only, and counts
+// in self_control.overflows. `group`: the workgroup's index (uniform control flow).
+fn list_candidates(group: u32, local: u32, rebuilds: u32) {
+    let slot = local / LISTING_LANES;
+    let lane = local % LISTING_LANES;
+    let i = group * LISTING_VERTICES + slot;
+    let n = params.vertex_count;
+    if (lane == 0u) {
+        atomicStore(&found_count[slot], 0u);
+    }
+    workgroupBarrier();
+    if ((i < n) & (lane < 27u)) {
+        let search = far_search(i, rebuild_position(i), heads_of(rebuilds));
+        let cell = far_cell(search, lane);
         for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-            if (!far_candidate(search, cell, j)) {
-                continue;
-            }
-            if (count < LIST_CAPACITY) {
-                var k = count;
-                while ((k > 0u) && (list[k - 1u] > j)) {
-                    list[k] = list[k - 1u];
-                    k -= 1u;
+            if (far_candidate(search, cell, j)) {
+                let k = atomicAdd(&found_count[slot], 1u);
+                if (k < LIST_CAPACITY) {
+                    found[slot][k] = j;
                 }
-                list[k] = j;
             }
-            count += 1u;
         }
     }
-    let n = params.vertex_count;
-    self_words[i] = count;
-    for (var k = 0u; k < min(count, LIST_CAPACITY); k++) {
-        self_words[n * (k + 1u) + i] = list[k];
+    workgroupBarrier();
+    if (i >= n) {
+        return;
     }
-    if (count > LIST_CAPACITY) {
-        atomicAdd(&self_control.overflows, 1u);
+    let count = atomicLoad(&found_count[slot]);
+    if (lane == 0u) {
+        self_words[i] = count;
+        if (count > LIST_CAPACITY) {
+            atomicAdd(&self_control.overflows, 1u);
+        }
+    }
+    if ((count <= LIST_CAPACITY) & (lane < count)) {
+        let j = found[slot][lane];
+        var rank = 0u;
+        for (var k = 0u; k < count; k++) {
+            rank += select(0u, 1u, found[slot][k] < j);
+        }
+        self_words[n * (rank + 1u) + i] = j;
     }
 }
 
 @compute @workgroup_size(256)
 fn build(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
-         @builtin(local_invocation_index) local: u32) {
+         @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
     if (HASH_PASS >= 2u) {
         check(local);
         return;
@@ -144,14 +169,15 @@ fn build(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
         rebuilds_so_far = self_control.rebuilds;
     }
     let rebuilds = workgroupUniformLoad(&rebuilds_so_far);
-    // One invocation a vertex (more than 65535 workgroups spill into y).
+    // More than 65535 workgroups spill into y.
+    if (HASH_PASS == 1u) {
+        list_candidates(group.y * groups.x + group.x, local, rebuilds);
+        return;
+    }
+    // One invocation a vertex.
     let i = id.y * groups.x * 256u + id.x;
     if (i >= params.vertex_count) {
         return;
     }
-    if (HASH_PASS == 0u) {
-        insert(i, rebuilds);
-    } else {
-        list_candidates(i, rebuilds);
-    }
+    insert(i, rebuilds);
 }

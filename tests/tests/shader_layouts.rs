@@ -298,3 +298,27 @@ fn self_collision_constants_are_the_hosts() {
     }
     assert_eq!(checked, 9, "three modules, three constants");
 }
+
+/// The candidates pass of `self_hash` (both shading languages) shares its workgroup among the
+/// vertices as the plan sizes its dispatch.
+#[test]
+fn candidate_listing_constants_are_the_hosts() {
+    let expected = [
+        ("LISTING_VERTICES", cloth_gpu::layout::LISTING_VERTICES),
+        ("LISTING_LANES", cloth_gpu::layout::LISTING_LANES),
+    ];
+    let module = naga::front::wgsl::parse_str(cloth_wgpu::SELF_HASH_SHADER).expect("self_hash.wgsl parses");
+    let glsl = include_str!("../../shaders/glsl/self_hash.comp");
+    for (name, value) in expected {
+        let (_, constant) = (module.constants.iter())
+            .find(|(_, c)| c.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("self_hash.wgsl: no {name}"));
+        let declared = match module.global_expressions[constant.init] {
+            naga::Expression::Literal(naga::Literal::U32(n)) => n,
+            ref other => panic!("self_hash.wgsl: {name} is {other:?}"),
+        };
+        assert_eq!(declared, value, "self_hash.wgsl: {name}");
+        let line = format!("const uint {name} = {value}u;");
+        assert!(glsl.contains(&line), "self_hash.comp declares no `{line}`");
+    }
+}

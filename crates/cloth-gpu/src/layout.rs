@@ -156,6 +156,18 @@ impl SelfHashTable {
 /// The most candidates a vertex keeps (`cloth_core::self_collision::LIST_CAPACITY`).
 pub const LIST_CAPACITY: u32 = cloth_core::self_collision::LIST_CAPACITY;
 
+/// Vertices the candidates pass lists a workgroup (of
+/// [`crate::plan::SELF_HASH_WORKGROUP`] invocations), [`LISTING_LANES`] invocations a vertex: a
+/// rebuild's time is the latency of walking the buckets' lists record after record, so each of
+/// the 27 cells a vertex searches is walked by an invocation of its own.
+pub const LISTING_VERTICES: u32 = 8;
+
+/// Invocations the candidates pass gives a vertex: one a cell of the 27 it searches, and
+/// [`LIST_CAPACITY`] in all, so that each writes at most one candidate of the vertex's list.
+pub const LISTING_LANES: u32 = LIST_CAPACITY;
+
+const _: () = assert!(LISTING_LANES >= 27 && LISTING_VERTICES * LISTING_LANES == crate::plan::SELF_HASH_WORKGROUP);
+
 /// The passes that rebuild the hash and the candidate lists, in order, each an indirect
 /// dispatch: insert, candidates. The check writes their workgroups `(x, y, z, unused)` into a
 /// buffer of their own, [`REBUILD_PASSES`] `uvec4`s, which only the check binds (a dispatch may

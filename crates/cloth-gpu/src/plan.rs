@@ -10,8 +10,8 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
-    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, MAX_COLLIDERS,
-    REBUILD_PASSES, SelfHashTable,
+    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, LISTING_VERTICES,
+    MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
 use crate::tuning::{GpuTuning, invalid};
@@ -621,9 +621,11 @@ fn self_collision_buffers(b: &mut Builder) -> SelfCollisionBuffers {
         };
     }
     let table = SelfHashTable::of(b.scene);
-    let [x, y] = self_hash_vertex_workgroups(b);
-    // Both rebuild passes run one invocation a vertex.
-    let control = GpuSelfControl { full: [[x, y, 1, 0]; REBUILD_PASSES], ..Default::default() };
+    let full = HashPass::REBUILD.map(|pass| {
+        let [x, y] = self_hash_workgroups(b, pass);
+        [x, y, 1, 0]
+    });
+    let control = GpuSelfControl { full, ..Default::default() };
     SelfCollisionBuffers {
         words: b.buffer("self-collision candidate lists", storage, 4 * table.list_words, None),
         links: b.filled("self-collision hash", storage, bytemuck::cast_slice(&table.initial_links())),
@@ -631,10 +633,12 @@ fn self_collision_buffers(b: &mut Builder) -> SelfCollisionBuffers {
     }
 }
 
-/// The workgroups of a `self_hash` pass with one invocation a vertex.
-fn self_hash_vertex_workgroups(b: &Builder) -> [u32; 2] {
+/// The workgroups of a rebuild pass of `self_hash`: the insert's one invocation a vertex, the
+/// candidates' [`LISTING_VERTICES`] vertices a workgroup.
+fn self_hash_workgroups(b: &Builder, pass: HashPass) -> [u32; 2] {
     let n = b.scene.vertex_count() as u32;
-    spilled_workgroups(n, SELF_HASH_WORKGROUP, b.limits.max_workgroups_per_dimension)
+    let vertices_a_workgroup = if pass == HashPass::Candidates { LISTING_VERTICES } else { SELF_HASH_WORKGROUP };
+    spilled_workgroups(n, vertices_a_workgroup, b.limits.max_workgroups_per_dimension)
 }
 
 /// Self-collision's check (one workgroup) and the rebuild's indirect passes, reading state `k`'s
@@ -663,8 +667,8 @@ fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> Sel
     let pass = |b: &mut Builder, which: HashPass, groups, indirect: Option<u64>| {
         let label = format!("self-collision {}", which.label());
         let pipeline = b.pipeline(kernel, &label, &[(Constant::HashPass, which as u32)]);
-        // (An indirect pass's workgroups are the most the check writes: the vertices'.)
-        let workgroups = if indirect.is_some() { self_hash_vertex_workgroups(b) } else { [1, 1] };
+        // (An indirect pass's workgroups are the most the check writes: a rebuild's.)
+        let workgroups = if indirect.is_some() { self_hash_workgroups(b, which) } else { [1, 1] };
         Pass { pipeline, groups, workgroups, dynamic_offset: None, indirect }
     };
     let check = pass(b, HashPass::Check, checks, None);
