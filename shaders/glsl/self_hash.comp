@@ -13,8 +13,9 @@
 //                 (an atomic exchange of the bucket's head), and clears its share of the other
 //                 table of heads, the one the next rebuild fills;
 //   1 candidates: every vertex lists its far partners within the window r + W (the cell side),
-//                 in increasing index, each of the 27 cells it searches walked by its own
-//                 invocation.
+//                 in increasing index;
+//   4 candidates in lanes: the same, for a small grid: several invocations a vertex, each
+//                 walking some of the cells it searches.
 
 // 256 invocations, whatever the tuning's workgroup size; no effect or collider constant applies
 // (the parameters only, no colliders).
@@ -51,10 +52,9 @@ shared uint box_keys[6];
 // The rebuilds so far, read once a workgroup (the insert and candidates passes).
 shared uint rebuilds_so_far;
 // Vertices the candidates pass lists a workgroup, and invocations a vertex
-// (cloth_gpu::layout::{LISTING_VERTICES, LISTING_LANES}): LISTING_LANES is LIST_CAPACITY, so each
-// lane writes at most one candidate.
-const uint LISTING_VERTICES = 8u;
-const uint LISTING_LANES = 32u;
+// (cloth_gpu::layout::{LISTING_VERTICES, LISTING_LANES}).
+const uint LISTING_VERTICES = 28u;
+const uint LISTING_LANES = 9u;
 // The candidates pass's candidates of each of its vertices, as the lanes find them, and their counts.
 shared uint found[LISTING_VERTICES][LIST_CAPACITY];
 shared uint found_count[LISTING_VERTICES];
@@ -119,32 +119,67 @@ void insert(uint i, uint rebuilds) {
     self_links[at + 3u] = head;
 }
 
-// Pass 1: the candidates of LISTING_VERTICES vertices a workgroup, LISTING_LANES invocations a
-// vertex, one a cell of the 27 searched (self_hash.wgsl's list_candidates). `group`: the
-// workgroup's index (uniform control flow).
-void list_candidates(uint group, uint local_index, uint rebuilds) {
+// Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex
+// with more than LIST_CAPACITY keeps the count only, and counts in self_control.overflows.
+void list_candidates(uint i, uint rebuilds) {
+    uint list[LIST_CAPACITY];
+    uint count = 0u;
+    FarSearch search = far_search(i, rebuild_position(i), heads_of(rebuilds));
+    for (uint c = 0u; c < 27u; c++) {
+        FarCell cell = far_cell(search, c);
+        for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+            if (!far_candidate(search, cell, j)) {
+                continue;
+            }
+            if (count < LIST_CAPACITY) {
+                uint k = count;
+                while (k > 0u && list[k - 1u] > j) {
+                    list[k] = list[k - 1u];
+                    k -= 1u;
+                }
+                list[k] = j;
+            }
+            count += 1u;
+        }
+    }
+    uint n = params.vertex_count;
+    self_words[i] = count;
+    for (uint k = 0u; k < min(count, LIST_CAPACITY); k++) {
+        self_words[n * (k + 1u) + i] = list[k];
+    }
+    if (count > LIST_CAPACITY) {
+        atomicAdd(self_control.overflows, 1u);
+    }
+}
+
+// Pass 4: pass 1 for a small grid, LISTING_LANES invocations a vertex
+// (self_hash.wgsl's list_candidates_in_lanes). `group`: the workgroup's index (uniform control
+// flow).
+void list_candidates_in_lanes(uint group, uint local_index, uint rebuilds) {
     uint slot = local_index / LISTING_LANES;
     uint lane = local_index % LISTING_LANES;
     uint i = group * LISTING_VERTICES + slot;
     uint n = params.vertex_count;
-    if (lane == 0u) {
+    if (lane == 0u && slot < LISTING_VERTICES) {
         found_count[slot] = 0u;
     }
     barrier();
-    if (i < n && lane < 27u) {
+    if (i < n && slot < LISTING_VERTICES) {
         FarSearch search = far_search(i, rebuild_position(i), heads_of(rebuilds));
-        FarCell cell = far_cell(search, lane);
-        for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-            if (far_candidate(search, cell, j)) {
-                uint k = atomicAdd(found_count[slot], 1u);
-                if (k < LIST_CAPACITY) {
-                    found[slot][k] = j;
+        for (uint c = lane; c < 27u; c += LISTING_LANES) {
+            FarCell cell = far_cell(search, c);
+            for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+                if (far_candidate(search, cell, j)) {
+                    uint k = atomicAdd(found_count[slot], 1u);
+                    if (k < LIST_CAPACITY) {
+                        found[slot][k] = j;
+                    }
                 }
             }
         }
     }
     barrier();
-    if (i >= n) {
+    if (i >= n || slot >= LISTING_VERTICES) {
         return;
     }
     uint count = found_count[slot];
@@ -154,8 +189,11 @@ void list_candidates(uint group, uint local_index, uint rebuilds) {
             atomicAdd(self_control.overflows, 1u);
         }
     }
-    if (count <= LIST_CAPACITY && lane < count) {
-        uint j = found[slot][lane];
+    if (count > LIST_CAPACITY) {
+        return;
+    }
+    for (uint at = lane; at < count; at += LISTING_LANES) {
+        uint j = found[slot][at];
         uint rank = 0u;
         for (uint k = 0u; k < count; k++) {
             rank += found[slot][k] < j ? 1u : 0u;
@@ -165,7 +203,7 @@ void list_candidates(uint group, uint local_index, uint rebuilds) {
 }
 
 void main() {
-    if (HASH_PASS >= 2u) {
+    if (HASH_PASS == 2u || HASH_PASS == 3u) {
         check(gl_LocalInvocationIndex);
         return;
     }
@@ -175,8 +213,8 @@ void main() {
     barrier();
     uint rebuilds = rebuilds_so_far;
     // More than maxComputeWorkGroupCount[0] workgroups spill into y.
-    if (HASH_PASS == 1u) {
-        list_candidates(gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x, gl_LocalInvocationIndex, rebuilds);
+    if (HASH_PASS == 4u) {
+        list_candidates_in_lanes(gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x, gl_LocalInvocationIndex, rebuilds);
         return;
     }
     // One invocation a vertex.
@@ -184,5 +222,9 @@ void main() {
     if (i >= params.vertex_count) {
         return;
     }
-    insert(i, rebuilds);
+    if (HASH_PASS == 0u) {
+        insert(i, rebuilds);
+    } else {
+        list_candidates(i, rebuilds);
+    }
 }

@@ -9,8 +9,9 @@
 //                 (an atomic exchange of the bucket's head), and clears its share of the other
 //                 table of heads, the one the next rebuild fills;
 //   1 candidates: every vertex lists its far partners within the window r + W (the cell side),
-//                 in increasing index, each of the 27 cells it searches walked by its own
-//                 invocation.
+//                 in increasing index;
+//   4 candidates in lanes: the same, for a small grid: several invocations a vertex, each
+//                 walking some of the cells it searches.
 // Prepended with layout.wgsl and self_collision.wgsl; no effect or collider constant applies, and
 // the workgroup holds 256 invocations whatever the tuning's workgroup size.
 
@@ -41,10 +42,9 @@ var<workgroup> box_keys: array<atomic<u32>, 6>;
 // The rebuilds so far, read once a workgroup (the insert and candidates passes).
 var<workgroup> rebuilds_so_far: u32;
 // Vertices the candidates pass lists a workgroup, and invocations a vertex
-// (cloth_gpu::layout::{LISTING_VERTICES, LISTING_LANES}): LISTING_LANES is LIST_CAPACITY, so each
-// lane writes at most one candidate.
-const LISTING_VERTICES: u32 = 8u;
-const LISTING_LANES: u32 = 32u;
+// (cloth_gpu::layout::{LISTING_VERTICES, LISTING_LANES}).
+const LISTING_VERTICES: u32 = 28u;
+const LISTING_LANES: u32 = 9u;
 // The candidates pass's candidates of each of its vertices, as the lanes find them, and their counts.
 var<workgroup> found: array<array<u32, LIST_CAPACITY>, LISTING_VERTICES>;
 var<workgroup> found_count: array<atomic<u32>, LISTING_VERTICES>;
@@ -109,36 +109,70 @@ fn insert(i: u32, rebuilds: u32) {
     atomicStore(&self_links[at + 3u], head);
 }
 
-// Pass 1: the candidates of LISTING_VERTICES vertices a workgroup, LISTING_LANES invocations a
-// vertex, one a cell of the 27 searched (cloth_gpu::layout::LISTING_VERTICES): a rebuild's time is
-// the latency of walking the buckets' lists one record after the other, so each cell's list is
-// walked by its own invocation. The lanes gather a vertex's candidates in `found`; each lane then
-// writes one at its rank, so the list is in increasing index (a vertex lies in one cell, so no
-// candidate comes twice). A vertex with more than LIST_CAPACITY keeps the count only, and counts
-// in self_control.overflows. `group`: the workgroup's index (uniform control flow).
-fn list_candidates(group: u32, local: u32, rebuilds: u32) {
+// Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex
+// with more than LIST_CAPACITY keeps the count only, and counts in self_control.overflows.
+fn list_candidates(i: u32, rebuilds: u32) {
+    var list: array<u32, LIST_CAPACITY>;
+    var count = 0u;
+    let search = far_search(i, rebuild_position(i), heads_of(rebuilds));
+    for (var c = 0u; c < 27u; c++) {
+        let cell = far_cell(search, c);
+        for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+            if (!far_candidate(search, cell, j)) {
+                continue;
+            }
+            if (count < LIST_CAPACITY) {
+                var k = count;
+                while ((k > 0u) && (list[k - 1u] > j)) {
+                    list[k] = list[k - 1u];
+                    k -= 1u;
+                }
+                list[k] = j;
+            }
+            count += 1u;
+        }
+    }
+    let n = params.vertex_count;
+    self_words[i] = count;
+    for (var k = 0u; k < min(count, LIST_CAPACITY); k++) {
+        self_words[n * (k + 1u) + i] = list[k];
+    }
+    if (count > LIST_CAPACITY) {
+        atomicAdd(&self_control.overflows, 1u);
+    }
+}
+
+// Pass 4: pass 1 for a small grid, whose vertices alone leave most of the GPU idle while each
+// walks its lists record after record: LISTING_LANES invocations a vertex, each walking every
+// LISTING_LANES-th of its 27 cells, LISTING_VERTICES vertices a workgroup. The lanes gather the
+// vertex's candidates in `found` and write each at its rank, so the list is in increasing index
+// (a vertex lies in one cell, so none comes twice). `group`: the workgroup's index (uniform
+// control flow).
+fn list_candidates_in_lanes(group: u32, local: u32, rebuilds: u32) {
     let slot = local / LISTING_LANES;
     let lane = local % LISTING_LANES;
     let i = group * LISTING_VERTICES + slot;
     let n = params.vertex_count;
-    if (lane == 0u) {
+    if ((lane == 0u) & (slot < LISTING_VERTICES)) {
         atomicStore(&found_count[slot], 0u);
     }
     workgroupBarrier();
-    if ((i < n) & (lane < 27u)) {
+    if ((i < n) & (slot < LISTING_VERTICES)) {
         let search = far_search(i, rebuild_position(i), heads_of(rebuilds));
-        let cell = far_cell(search, lane);
-        for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-            if (far_candidate(search, cell, j)) {
-                let k = atomicAdd(&found_count[slot], 1u);
-                if (k < LIST_CAPACITY) {
-                    found[slot][k] = j;
+        for (var c = lane; c < 27u; c += LISTING_LANES) {
+            let cell = far_cell(search, c);
+            for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
+                if (far_candidate(search, cell, j)) {
+                    let k = atomicAdd(&found_count[slot], 1u);
+                    if (k < LIST_CAPACITY) {
+                        found[slot][k] = j;
+                    }
                 }
             }
         }
     }
     workgroupBarrier();
-    if (i >= n) {
+    if ((i >= n) | (slot >= LISTING_VERTICES)) {
         return;
     }
     let count = atomicLoad(&found_count[slot]);
@@ -148,8 +182,11 @@ fn list_candidates(group: u32, local: u32, rebuilds: u32) {
             atomicAdd(&self_control.overflows, 1u);
         }
     }
-    if ((count <= LIST_CAPACITY) & (lane < count)) {
-        let j = found[slot][lane];
+    if (count > LIST_CAPACITY) {
+        return;
+    }
+    for (var at = lane; at < count; at += LISTING_LANES) {
+        let j = found[slot][at];
         var rank = 0u;
         for (var k = 0u; k < count; k++) {
             rank += select(0u, 1u, found[slot][k] < j);
@@ -161,7 +198,7 @@ fn list_candidates(group: u32, local: u32, rebuilds: u32) {
 @compute @workgroup_size(256)
 fn build(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
          @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
-    if (HASH_PASS >= 2u) {
+    if ((HASH_PASS == 2u) | (HASH_PASS == 3u)) {
         check(local);
         return;
     }
@@ -170,8 +207,8 @@ fn build(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     }
     let rebuilds = workgroupUniformLoad(&rebuilds_so_far);
     // More than 65535 workgroups spill into y.
-    if (HASH_PASS == 1u) {
-        list_candidates(group.y * groups.x + group.x, local, rebuilds);
+    if (HASH_PASS == 4u) {
+        list_candidates_in_lanes(group.y * groups.x + group.x, local, rebuilds);
         return;
     }
     // One invocation a vertex.
@@ -179,5 +216,9 @@ fn build(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     if (i >= params.vertex_count) {
         return;
     }
-    insert(i, rebuilds);
+    if (HASH_PASS == 0u) {
+        insert(i, rebuilds);
+    } else {
+        list_candidates(i, rebuilds);
+    }
 }

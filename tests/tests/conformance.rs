@@ -3,7 +3,7 @@
 use cloth_conformance::{Backend, create, create_tuned, scene};
 use cloth_core::scene::{ClothSpec, Corner, Orientation, Pin, Substeps, TimeSpec};
 use cloth_core::{ClothState, CpuSimulator, CpuSimulatorF64, Diagnostics, Effect, Scene, Simulator};
-use cloth_gpu::{GpuTuning, Tiling};
+use cloth_gpu::{CandidateListing, GpuTuning, Tiling};
 
 // ---------------------------------------------------------------------------------------------
 // Tolerances.
@@ -497,6 +497,7 @@ fn follows_the_reference_from(
     frames: u32,
     reordered: bool,
     what: &str,
+    tuning: &GpuTuning,
 ) -> Vec<Diagnostics> {
     use cloth_core::Integrator;
     let run = |sim: &mut dyn Simulator| {
@@ -507,7 +508,7 @@ fn follows_the_reference_from(
     let mut diagnostics = Vec::new();
     for integrator in Integrator::ALL {
         let scene = Scene { integrator, ..scene.clone() };
-        let Some(mut sim) = create(backend, &scene) else { return diagnostics };
+        let Some(mut sim) = create_tuned(backend, &scene, tuning) else { return diagnostics };
         let state = run(sim.as_mut());
         diagnostics.push(sim.diagnostics().unwrap());
         let reference = run(&mut CpuSimulator::new(&scene).unwrap());
@@ -541,16 +542,30 @@ fn follows_the_reference_from(
 /// lies flat at 0.5 m, rows 12 to 23 folded back over rows 0 to 11; no gravity, so the layers'
 /// repulsion moves it apart, with the fold's springs. Every integrator, 3 frames of 40 substeps.
 /// The GPU finds the other layer's vertices in its candidate lists, rebuilt by its checks, and
-/// sums the repulsions in the reference's order; on lavapipe the results are bit-exact.
+/// sums the repulsions in the reference's order; on lavapipe the results are bit-exact. Both
+/// ways of listing the candidates (`CandidateListing`) give the same lists.
 fn self_collision_matches_the_reference(backend: &Backend) {
     let scene = self_collision_scene(12, 24);
     let thickness = 1.5 * 0.03;
     let folded = layered(12, 12, 2, 0.03, (0.8 * thickness) as f32);
-    for d in follows_the_reference_from(backend, &scene, &folded, 3, false, "folded cloth") {
-        if let Some(lists) = d.candidate_lists {
-            assert!(lists.rebuilds >= 1 && lists.checks >= lists.rebuilds, "{lists:?}");
-            assert_eq!(lists.overflowed_lists, 0, "two layers fit the lists");
+    for candidate_listing in listings_of(backend) {
+        let tuning = GpuTuning { candidate_listing, ..GpuTuning::default() };
+        for d in follows_the_reference_from(backend, &scene, &folded, 3, false, "folded cloth", &tuning) {
+            if let Some(lists) = d.candidate_lists {
+                assert!(lists.rebuilds >= 1 && lists.checks >= lists.rebuilds, "{lists:?}");
+                assert_eq!(lists.overflowed_lists, 0, "two layers fit the lists");
+            }
         }
+    }
+}
+
+/// The ways of listing self-collision's candidates a backend has: both on a GPU backend, one
+/// (the tuning it ignores) on the CPU.
+fn listings_of(backend: &Backend) -> Vec<CandidateListing> {
+    if backend.name.starts_with("cpu") {
+        vec![CandidateListing::Auto]
+    } else {
+        vec![CandidateListing::Lanes, CandidateListing::OnePerVertex]
     }
 }
 
@@ -567,10 +582,13 @@ fn self_collision_in_a_stack_of_layers_matches_the_reference(backend: &Backend) 
     }
     let scene = self_collision_scene(8, 48);
     let stack = layered(8, 8, 6, 0.03, (0.6 * 1.5 * 0.03) as f32);
-    for d in follows_the_reference_from(backend, &scene, &stack, 1, true, "six layers") {
-        if let Some(lists) = d.candidate_lists {
-            eprintln!("{}: six layers: {lists:?}", backend.name);
-            assert!(lists.overflowed_lists > 0, "some lists overflow: {lists:?}");
+    for candidate_listing in listings_of(backend) {
+        let tuning = GpuTuning { candidate_listing, ..GpuTuning::default() };
+        for d in follows_the_reference_from(backend, &scene, &stack, 1, true, "six layers", &tuning) {
+            if let Some(lists) = d.candidate_lists {
+                eprintln!("{}: six layers, {candidate_listing:?}: {lists:?}", backend.name);
+                assert!(lists.overflowed_lists > 0, "some lists overflow: {lists:?}");
+            }
         }
     }
 }

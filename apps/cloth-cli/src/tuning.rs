@@ -2,7 +2,7 @@
 //! [`GpuTuning`], with its default.
 
 use cloth_gpu::tuning::{DEFAULT_BLOCK_WIDTH, DEFAULT_WORKGROUP_SIZE};
-use cloth_gpu::{BlockOrder, GpuTuning, TileConfig, Tiling};
+use cloth_gpu::{BlockOrder, CandidateListing, GpuTuning, TileConfig, Tiling};
 
 /// How the GPU backends lay their work out (see `cloth_gpu::GpuTuning`); nothing here changes a
 /// result, only its speed, except `--adapter`, which picks the device.
@@ -35,6 +35,10 @@ pub struct TuningArgs {
     /// moves 25 to 100 MB), forward, alternating.
     #[arg(long, default_value = "auto", value_parser = block_order)]
     block_order: BlockOrder,
+    /// How self-collision's rebuild lists each vertex's candidates: auto (in lanes below 2^18
+    /// vertices), lanes (several invocations a vertex), one-per-vertex.
+    #[arg(long, default_value = "auto", value_parser = candidate_listing)]
+    candidate_listing: CandidateListing,
     /// vulkano: print each pipeline's registers and workgroup memory as the driver reports them.
     #[arg(long)]
     pipeline_statistics: bool,
@@ -55,6 +59,15 @@ fn block_order(text: &str) -> Result<BlockOrder, String> {
         "forward" => Ok(BlockOrder::Forward),
         "alternating" => Ok(BlockOrder::Alternating),
         _ => Err(format!("'{text}' is not a block order: auto, forward or alternating")),
+    }
+}
+
+fn candidate_listing(text: &str) -> Result<CandidateListing, String> {
+    match text {
+        "auto" => Ok(CandidateListing::Auto),
+        "lanes" => Ok(CandidateListing::Lanes),
+        "one-per-vertex" => Ok(CandidateListing::OnePerVertex),
+        _ => Err(format!("'{text}' is not a candidate listing: auto, lanes or one-per-vertex")),
     }
 }
 
@@ -85,6 +98,7 @@ impl TuningArgs {
             tile: self.tile,
             packed_state: self.packed_state,
             block_order: self.block_order,
+            candidate_listing: self.candidate_listing,
             pipeline_statistics: self.pipeline_statistics,
             adapter: self.adapter.clone(),
         }

@@ -156,17 +156,24 @@ impl SelfHashTable {
 /// The most candidates a vertex keeps (`cloth_core::self_collision::LIST_CAPACITY`).
 pub const LIST_CAPACITY: u32 = cloth_core::self_collision::LIST_CAPACITY;
 
-/// Vertices the candidates pass lists a workgroup (of
-/// [`crate::plan::SELF_HASH_WORKGROUP`] invocations), [`LISTING_LANES`] invocations a vertex: a
-/// rebuild's time is the latency of walking the buckets' lists record after record, so each of
-/// the 27 cells a vertex searches is walked by an invocation of its own.
-pub const LISTING_VERTICES: u32 = 8;
+/// Invocations the candidates pass gives a vertex of a small grid (fewer than
+/// [`LISTING_IN_LANES_BELOW`] vertices), each walking every `LISTING_LANES`-th of the 27 cells
+/// the vertex searches. Walking the buckets' lists is a chain of dependent reads, record after
+/// record: with one invocation a vertex, a small grid's few invocations leave most of the GPU
+/// waiting on them, and lanes walk a vertex's cells at once. (On the H200, the benchmark scene
+/// rebuilt at every substep, ms a frame: at 256², 3.66 with 9 lanes, 3.93 with 3, 4.35 with 27,
+/// 5.20 with one invocation a vertex; at 1024², where a vertex's invocation alone fills the GPU,
+/// 32.6, 34.6 and 48.0 against 30.8.)
+pub const LISTING_LANES: u32 = 9;
 
-/// Invocations the candidates pass gives a vertex: one a cell of the 27 it searches, and
-/// [`LIST_CAPACITY`] in all, so that each writes at most one candidate of the vertex's list.
-pub const LISTING_LANES: u32 = LIST_CAPACITY;
+/// Vertices the candidates pass lists a workgroup (of [`crate::plan::SELF_HASH_WORKGROUP`]
+/// invocations) on a small grid, [`LISTING_LANES`] invocations each.
+pub const LISTING_VERTICES: u32 = crate::plan::SELF_HASH_WORKGROUP / LISTING_LANES;
 
-const _: () = assert!(LISTING_LANES >= 27 && LISTING_VERTICES * LISTING_LANES == crate::plan::SELF_HASH_WORKGROUP);
+/// Grids of fewer vertices than this list their candidates in lanes ([`LISTING_LANES`]); larger
+/// ones one invocation a vertex: 2¹⁸, about the invocations the H200's 132 multiprocessors hold at
+/// once (2048 each).
+pub const LISTING_IN_LANES_BELOW: u32 = 1 << 18;
 
 /// The passes that rebuild the hash and the candidate lists, in order, each an indirect
 /// dispatch: insert, candidates. The check writes their workgroups `(x, y, z, unused)` into a

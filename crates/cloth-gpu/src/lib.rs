@@ -30,4 +30,4 @@ pub use geometry::{DeviceLimits, TileConfig};
 pub use plan::Plan;
 pub use schedule::{Dispatch, Schedule};
 pub use simulator::{Frame, GpuBackend, GpuSimulator};
-pub use tuning::{BlockOrder, GpuTuning, Tiling};
+pub use tuning::{BlockOrder, CandidateListing, GpuTuning, Tiling};

@@ -10,11 +10,11 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
-    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, LISTING_VERTICES,
-    MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
+    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams,
+    LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
-use crate::tuning::{GpuTuning, invalid};
+use crate::tuning::{CandidateListing, GpuTuning, invalid};
 
 /// Index into [`Plan::buffers`].
 pub type BufferId = usize;
@@ -186,16 +186,28 @@ pub enum HashPass {
     Check = 2,
     /// The check that always rebuilds.
     ForcedCheck = 3,
+    /// [`HashPass::Candidates`] on a grid of fewer than [`LISTING_IN_LANES_BELOW`] vertices:
+    /// [`crate::layout::LISTING_LANES`] invocations a vertex.
+    CandidatesInLanes = 4,
 }
 
 impl HashPass {
-    /// The rebuild's passes, in order ([`REBUILD_PASSES`]).
-    pub const REBUILD: [HashPass; REBUILD_PASSES] = [HashPass::Insert, HashPass::Candidates];
+    /// The rebuild's passes for a cloth of `vertices` listed as `listing` asks, in order
+    /// ([`REBUILD_PASSES`]).
+    pub fn rebuild(vertices: usize, listing: CandidateListing) -> [HashPass; REBUILD_PASSES] {
+        let lanes = match listing {
+            CandidateListing::Auto => vertices < LISTING_IN_LANES_BELOW as usize,
+            CandidateListing::Lanes => true,
+            CandidateListing::OnePerVertex => false,
+        };
+        [HashPass::Insert, if lanes { HashPass::CandidatesInLanes } else { HashPass::Candidates }]
+    }
 
     fn label(self) -> &'static str {
         match self {
             HashPass::Insert => "insert",
             HashPass::Candidates => "candidates",
+            HashPass::CandidatesInLanes => "candidates in lanes",
             HashPass::Check => "check",
             HashPass::ForcedCheck => "forced check",
         }
@@ -621,7 +633,7 @@ fn self_collision_buffers(b: &mut Builder) -> SelfCollisionBuffers {
         };
     }
     let table = SelfHashTable::of(b.scene);
-    let full = HashPass::REBUILD.map(|pass| {
+    let full = HashPass::rebuild(b.scene.vertex_count(), b.tuning.candidate_listing).map(|pass| {
         let [x, y] = self_hash_workgroups(b, pass);
         [x, y, 1, 0]
     });
@@ -633,11 +645,11 @@ fn self_collision_buffers(b: &mut Builder) -> SelfCollisionBuffers {
     }
 }
 
-/// The workgroups of a rebuild pass of `self_hash`: the insert's one invocation a vertex, the
-/// candidates' [`LISTING_VERTICES`] vertices a workgroup.
+/// The workgroups of a rebuild pass of `self_hash`: one invocation a vertex, or
+/// [`LISTING_VERTICES`] vertices a workgroup when the candidates are listed in lanes.
 fn self_hash_workgroups(b: &Builder, pass: HashPass) -> [u32; 2] {
     let n = b.scene.vertex_count() as u32;
-    let vertices_a_workgroup = if pass == HashPass::Candidates { LISTING_VERTICES } else { SELF_HASH_WORKGROUP };
+    let vertices_a_workgroup = if pass == HashPass::CandidatesInLanes { LISTING_VERTICES } else { SELF_HASH_WORKGROUP };
     spilled_workgroups(n, vertices_a_workgroup, b.limits.max_workgroups_per_dimension)
 }
 
@@ -661,7 +673,8 @@ fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> Sel
     };
     let checks = groups(b, HashPass::Check, [written, read, workgroups]);
     let inserts = groups(b, HashPass::Insert, [buffers.links, read, sizes]);
-    let candidates = groups(b, HashPass::Candidates, [written, buffers.links, sizes]);
+    let rebuild_passes = HashPass::rebuild(b.scene.vertex_count(), b.tuning.candidate_listing);
+    let candidates = groups(b, rebuild_passes[1], [written, buffers.links, sizes]);
     b.plan.state.indirect = Some(workgroups);
     b.plan.state.self_control = Some(buffers.control);
     let pass = |b: &mut Builder, which: HashPass, groups, indirect: Option<u64>| {
@@ -673,7 +686,7 @@ fn self_collision_checks(b: &mut Builder, buffers: &SelfCollisionBuffers) -> Sel
     };
     let check = pass(b, HashPass::Check, checks, None);
     let forced = pass(b, HashPass::ForcedCheck, checks, None);
-    let rebuild = (HashPass::REBUILD.iter().enumerate())
+    let rebuild = (rebuild_passes.iter().enumerate())
         .map(|(k, &which)| {
             let groups = if which == HashPass::Insert { inserts } else { candidates };
             pass(b, which, groups, Some((k * size_of::<[u32; 4]>()) as u64))

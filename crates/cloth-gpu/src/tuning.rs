@@ -39,6 +39,9 @@ pub struct GpuTuning {
     /// The order in which the packed passes' workgroups take the grid's blocks. Default
     /// [`BlockOrder::Auto`].
     pub block_order: BlockOrder,
+    /// How self-collision's rebuild lists each vertex's candidates. Default
+    /// [`CandidateListing::Auto`].
+    pub candidate_listing: CandidateListing,
     /// Print the driver compiler's statistics of each pipeline (registers, shared memory) to
     /// standard error as it is built: vulkano only, where the device offers
     /// `VK_KHR_pipeline_executable_properties`. Default `false`.
@@ -57,6 +60,7 @@ impl Default for GpuTuning {
             tile: None,
             packed_state: true,
             block_order: BlockOrder::Auto,
+            candidate_listing: CandidateListing::Auto,
             pipeline_statistics: false,
             adapter: None,
         }
@@ -89,6 +93,19 @@ pub enum BlockOrder {
     /// Forward and backward by turns, so each substep starts on the blocks the one before wrote
     /// last, which the L2 cache still holds.
     Alternating,
+}
+
+/// How self-collision's rebuild lists each vertex's candidates (the same lists either way).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CandidateListing {
+    /// In lanes on grids of fewer than [`crate::layout::LISTING_IN_LANES_BELOW`] vertices, one
+    /// invocation a vertex on larger ones.
+    #[default]
+    Auto,
+    /// [`crate::layout::LISTING_LANES`] invocations a vertex, each walking some of its cells.
+    Lanes,
+    /// One invocation a vertex, walking all of its cells.
+    OnePerVertex,
 }
 
 /// The error for a tuning field `option` holding `value`, which must be `expected`.
