@@ -160,10 +160,8 @@ pub const LIST_CAPACITY: u32 = cloth_core::self_collision::LIST_CAPACITY;
 /// [`LISTING_IN_LANES_BELOW`] vertices), each walking every `LISTING_LANES`-th of the 27 cells
 /// the vertex searches. Walking the buckets' lists is a chain of dependent reads, record after
 /// record: with one invocation a vertex, a small grid's few invocations leave most of the GPU
-/// waiting on them, and lanes walk a vertex's cells at once. (On the H200, the benchmark scene
-/// rebuilt at every substep, ms a frame: at 256², 3.66 with 9 lanes, 3.93 with 3, 4.35 with 27,
-/// 5.20 with one invocation a vertex; at 1024², where a vertex's invocation alone fills the GPU,
-/// 32.6, 34.6 and 48.0 against 30.8.)
+/// waiting on them, and lanes walk a vertex's cells at once (docs/performance.md, "What
+/// self-collision costs").
 pub const LISTING_LANES: u32 = 9;
 
 /// Vertices the candidates pass lists a workgroup (of [`crate::plan::SELF_HASH_WORKGROUP`]
