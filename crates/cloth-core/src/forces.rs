@@ -5,7 +5,7 @@
 //! with the same names and the same operation order.
 
 use crate::colliders::Surface;
-use crate::real::{Real, Vec3};
+use crate::real::{Mat3, Real, Vec3};
 
 /// Gravity, `F_g = m g` (N), with `m` in kg and `g` in m/s².
 pub fn gravity_force<R: Real>(mass: R, gravity: Vec3<R>) -> Vec3<R> {
@@ -52,6 +52,49 @@ pub fn add_spring_force<R: Real>(
     let length = length_squared * inverse_length;
     let extension_rate = (v_j - v_i).dot(u);
     *force += u * (stiffness * (length - rest_length) + damping * extension_rate);
+}
+
+/// The stiffness block of a spring between vertices `i` and `j`, N/m: `K` with
+/// `∂F_i/∂x_i = −K` and `∂F_i/∂x_j = K` for the Hooke force of [`add_spring_force`], made
+/// positive semi-definite for implicit integrators.
+///
+/// With `L = |x_j − x_i|`, `u = (x_j − x_i)/L` and `P = I − u uᵀ` (the projection across the
+/// spring), Hooke's force `k (L − L0) u` has the Jacobian
+///
+/// ```text
+/// K = k (u uᵀ + (1 − L0/L) P)
+/// ```
+///
+/// along the spring its stiffness `k`, across it the tension per length `k (L − L0)/L`. A
+/// compressed spring (`L < L0`) has a negative transverse term: it would buckle, and the implicit
+/// system `M − h² ∂F/∂x` could lose its positive definiteness, which conjugate gradients and Vertex
+/// Block Descent's Newton steps need. The transverse term is clamped at zero (`max(0, 1 − L0/L)`,
+/// as Choi and Ko's cloth solver does), so a compressed spring keeps only its axial stiffness.
+/// `k` in N/m, `L0` in m. A zero-length spring has no direction and gives the zero block.
+pub fn spring_stiffness_block<R: Real>(x_i: Vec3<R>, x_j: Vec3<R>, rest_length: R, stiffness: R) -> Mat3<R> {
+    let delta = x_j - x_i;
+    let length = delta.length();
+    if length <= R::zero() {
+        return Mat3::zero();
+    }
+    let u = delta * (R::one() / length);
+    let axial = Mat3::outer(u, u);
+    let transverse = (R::one() - rest_length / length).max(R::zero());
+    (axial + (Mat3::identity() - axial) * transverse) * stiffness
+}
+
+/// The damping block of a spring between vertices `i` and `j`, N·s/m: `C = c_d u uᵀ`, with
+/// `∂F_i/∂v_i = −C` and `∂F_i/∂v_j = C` for the damping of [`add_spring_force`]
+/// (`c_d ((v_j − v_i) · u) u`, linear in the velocities; the change of `u` with the positions is
+/// left to the stiffness block, as Baraff and Witkin do). A zero-length spring gives the zero block.
+pub fn spring_damping_block<R: Real>(x_i: Vec3<R>, x_j: Vec3<R>, damping: R) -> Mat3<R> {
+    let delta = x_j - x_i;
+    let length = delta.length();
+    if length <= R::zero() {
+        return Mat3::zero();
+    }
+    let u = delta * (R::one() / length);
+    Mat3::outer(u, u) * damping
 }
 
 /// Linear air drag, `F = −m γ v` (N), with `γ` in 1/s. An addition to the mass-spring model: the `AirDrag` effect.
@@ -187,6 +230,73 @@ pub fn integrate<R: Real>(x: Vec3<R>, v: Vec3<R>, resultant: Vec3<R>, mass: R, d
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The Hooke force on `i` from a spring to `j` (no damping), N.
+    fn hooke(x_i: Vec3<f64>, x_j: Vec3<f64>, rest: f64, k: f64) -> Vec3<f64> {
+        let mut f = Vec3::zero();
+        add_spring_force(&mut f, x_i, x_j, Vec3::zero(), Vec3::zero(), rest, k, 0.0);
+        f
+    }
+
+    /// `∂F_i/∂x_i` by central differences, by columns.
+    fn hooke_jacobian(x_i: Vec3<f64>, x_j: Vec3<f64>, rest: f64, k: f64) -> [Vec3<f64>; 3] {
+        let h = 1e-6;
+        let axes = Mat3::<f64>::identity().rows;
+        axes.map(|e| (hooke(x_i + e * h, x_j, rest, k) - hooke(x_i - e * h, x_j, rest, k)) * (0.5 / h))
+    }
+
+    #[test]
+    fn a_stretched_springs_stiffness_block_is_its_force_jacobian() {
+        let (x_i, x_j, rest, k) = (Vec3::new(0.1, -0.2, 0.3), Vec3::new(0.4, 0.2, 0.1), 0.3, 250.0);
+        assert!((x_j - x_i).length() > rest, "stretched");
+        let block = spring_stiffness_block(x_i, x_j, rest, k);
+        for (c, column) in hooke_jacobian(x_i, x_j, rest, k).into_iter().enumerate() {
+            let e = Mat3::<f64>::identity().rows[c];
+            // ∂F_i/∂x_i = −K.
+            let d = column + block.mul_vec(e);
+            assert!(d.length() < 1e-6 * k, "column {c}: {column:?} against {:?}", block.mul_vec(e));
+        }
+        // And F_i depends on x_j − x_i only: ∂F_i/∂x_j = K.
+        let h = 1e-6;
+        let e = Vec3::new(0.0, 1.0, 0.0);
+        let column = (hooke(x_i, x_j + e * h, rest, k) - hooke(x_i, x_j - e * h, rest, k)) * (0.5 / h);
+        assert!((column - block.mul_vec(e)).length() < 1e-6 * k);
+    }
+
+    #[test]
+    fn a_compressed_springs_stiffness_block_keeps_its_axial_part_only() {
+        let (x_i, x_j, rest, k) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.2, 0.0, 0.0), 0.3, 100.0);
+        let block = spring_stiffness_block(x_i, x_j, rest, k);
+        let (along, across) = (Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
+        // The exact Jacobian's transverse curvature is negative (the spring would buckle) ...
+        let exact = hooke_jacobian(x_i, x_j, rest, k);
+        let transverse = -exact[2].dot(across);
+        assert!(transverse < -1.0, "k (1 − L0/L) = −50 N/m: {transverse}");
+        // ... the block's is zero, and along the spring it is k.
+        assert!(block.mul_vec(across).length() < 1e-12);
+        assert!((along.dot(block.mul_vec(along)) - k).abs() < 1e-9);
+        // Positive semi-definite: vᵀ K v ≥ 0 for every v.
+        for v in [Vec3::new(1.0, 2.0, -3.0), Vec3::new(-0.5, 0.1, 0.7), across] {
+            assert!(v.dot(block.mul_vec(v)) >= 0.0);
+        }
+    }
+
+    #[test]
+    fn the_damping_block_is_the_damping_forces_velocity_jacobian() {
+        let (x_i, x_j, c) = (Vec3::new(0.0, 0.1, 0.0), Vec3::new(0.3, 0.5, -0.2), 0.7);
+        let block = spring_damping_block(x_i, x_j, c);
+        let damping = |v_i: Vec3<f64>| {
+            let mut f = Vec3::zero();
+            add_spring_force(&mut f, x_i, x_j, v_i, Vec3::zero(), (x_j - x_i).length(), 0.0, c);
+            f
+        };
+        for e in Mat3::<f64>::identity().rows {
+            // Linear in v_i: ∂F_i/∂v_i = −C exactly.
+            let column = damping(e) - damping(Vec3::zero());
+            assert!((column + block.mul_vec(e)).length() < 1e-12, "{column:?}");
+        }
+        assert_eq!(spring_damping_block(x_i, x_i, c), Mat3::zero(), "a zero-length spring");
+    }
 
     fn v(x: f64, y: f64, z: f64) -> Vec3<f64> {
         Vec3::new(x, y, z)

@@ -106,3 +106,105 @@ impl<R: Real> SubAssign for Vec3<R> {
         *self = *self - o;
     }
 }
+
+/// A 3 × 3 matrix of [`Real`] components, by rows: the blocks of the force Jacobians that implicit
+/// integrators solve with (stiffness in N/m, damping in N·s/m).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Mat3<R> {
+    /// The rows.
+    pub rows: [Vec3<R>; 3],
+}
+
+impl<R: Real> Mat3<R> {
+    /// The zero matrix.
+    pub fn zero() -> Self {
+        Self { rows: [Vec3::zero(); 3] }
+    }
+
+    /// The identity.
+    pub fn identity() -> Self {
+        let (o, l) = (R::zero(), R::one());
+        Self { rows: [Vec3::new(l, o, o), Vec3::new(o, l, o), Vec3::new(o, o, l)] }
+    }
+
+    /// The outer product `a bᵀ`.
+    pub fn outer(a: Vec3<R>, b: Vec3<R>) -> Self {
+        Self { rows: [b * a.x, b * a.y, b * a.z] }
+    }
+
+    /// `M v`.
+    pub fn mul_vec(&self, v: Vec3<R>) -> Vec3<R> {
+        Vec3::new(self.rows[0].dot(v), self.rows[1].dot(v), self.rows[2].dot(v))
+    }
+
+    /// The determinant.
+    pub fn determinant(&self) -> R {
+        let [a, b, c] = self.rows;
+        a.dot(b.cross(c))
+    }
+
+    /// The inverse, `None` where the determinant is zero or not finite.
+    pub fn inverse(&self) -> Option<Self> {
+        let [a, b, c] = self.rows;
+        let det = self.determinant();
+        if det == R::zero() || !det.is_finite() {
+            return None;
+        }
+        // The columns of the inverse are the cross products of the rows, over the determinant.
+        let columns = [b.cross(c), c.cross(a), a.cross(b)];
+        let inv = R::one() / det;
+        let row = |k: usize| {
+            let pick = |v: Vec3<R>| [v.x, v.y, v.z][k];
+            Vec3::new(pick(columns[0]), pick(columns[1]), pick(columns[2])) * inv
+        };
+        Some(Self { rows: [row(0), row(1), row(2)] })
+    }
+}
+
+impl<R: Real> Add for Mat3<R> {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self { rows: [self.rows[0] + o.rows[0], self.rows[1] + o.rows[1], self.rows[2] + o.rows[2]] }
+    }
+}
+
+impl<R: Real> Sub for Mat3<R> {
+    type Output = Self;
+    fn sub(self, o: Self) -> Self {
+        Self { rows: [self.rows[0] - o.rows[0], self.rows[1] - o.rows[1], self.rows[2] - o.rows[2]] }
+    }
+}
+
+impl<R: Real> Mul<R> for Mat3<R> {
+    type Output = Self;
+    fn mul(self, s: R) -> Self {
+        Self { rows: [self.rows[0] * s, self.rows[1] * s, self.rows[2] * s] }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_matrix_times_its_inverse_is_the_identity() {
+        let m = Mat3 { rows: [Vec3::new(4.0, 1.0, 0.5), Vec3::new(1.0, 3.0, -1.0), Vec3::new(0.5, -1.0, 2.0)] };
+        let inv = m.inverse().expect("invertible");
+        for k in 0..3 {
+            let e = Mat3::<f64>::identity().rows[k];
+            let back = m.mul_vec(inv.mul_vec(e)) - e;
+            assert!(back.length() < 1e-14, "column {k}: {back:?}");
+        }
+        let singular = Mat3::outer(Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.0, 1.0, 1.0));
+        assert_eq!(singular.inverse(), None, "a rank-one matrix has no inverse");
+    }
+
+    #[test]
+    fn the_outer_product_maps_b_onto_a() {
+        let (a, b) = (Vec3::new(1.0, -2.0, 0.5), Vec3::new(3.0, 0.0, 4.0));
+        let m = Mat3::outer(a, b);
+        // (a bᵀ) b = a |b|².
+        assert!((m.mul_vec(b) - a * 25.0).length() < 1e-12);
+        assert!((m.mul_vec(Vec3::new(4.0, 0.0, -3.0))).length() < 1e-12, "b's orthogonal complement maps to 0");
+    }
+}
