@@ -9,9 +9,11 @@
 //! * [`mesh`]: OBJ meshes read, checked closed and sampled as signed distance fields;
 //! * [`grid`] and [`springs`]: the `nx × ny` mesh and its structural, shear and bend springs;
 //! * [`model`]: grid + springs + per-vertex spring lists, the one source every backend uses;
-//! * [`coloring`]: the springs in sets that share no vertex (XPBD's parallel projection order);
+//! * [`coloring`]: the springs in sets that share no vertex (XPBD's parallel projection order),
+//!   and the vertices in sets that share no spring;
 //! * [`quantities`]: what a substep derives from a scene (masses, rest lengths, wind), once;
-//! * [`forces`]: the force model, one function per force;
+//! * [`forces`]: the force model, one function per force, and the springs' Jacobian blocks;
+//! * [`implicit`]: the linear system of a backward-Euler substep and its conjugate gradients;
 //! * [`self_collision`]: vertices closer than the thickness repel, found by a spatial hash;
 //! * [`motion`]: moving pins and colliders, and the gusting wind;
 //! * [`constraints`]: XPBD's constraint projections, one function per constraint;
@@ -48,6 +50,7 @@ pub mod error;
 pub mod export;
 pub mod forces;
 pub mod grid;
+pub mod implicit;
 pub mod integrator;
 pub mod intersections;
 pub mod mesh;
