@@ -14,6 +14,7 @@
 //! * [`quantities`]: what a substep derives from a scene (masses, rest lengths, wind), once;
 //! * [`forces`]: the force model, one function per force, and the springs' Jacobian blocks;
 //! * [`implicit`]: the linear system of a backward-Euler substep and its conjugate gradients;
+//! * [`vbd`]: Vertex Block Descent's per-vertex Newton step and its sweep over the vertex colours;
 //! * [`self_collision`]: vertices closer than the thickness repel, found by a spatial hash;
 //! * [`motion`]: moving pins and colliders, and the gusting wind;
 //! * [`constraints`]: XPBD's constraint projections, one function per constraint;
@@ -67,6 +68,7 @@ pub mod springs;
 pub mod stability;
 pub mod tessellation;
 pub mod validation;
+pub mod vbd;
 
 pub use effects::{Effect, EffectSet};
 pub use energy::Energy;
