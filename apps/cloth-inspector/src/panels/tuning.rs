@@ -2,7 +2,7 @@
 //! is fixed for the life of a simulator, so "Apply" hands the running cloth to a new one with the
 //! edited tuning, as a backend switch does; nothing but the speed changes.
 
-use cloth_gpu::{BlockOrder, GpuTuning, Tiling};
+use cloth_gpu::{BlockOrder, CandidateListing, GpuTuning, Tiling};
 use eframe::egui;
 
 use crate::commands::Command;
@@ -34,6 +34,16 @@ pub fn show(ui: &mut egui::Ui, draft: &mut GpuTuning, running: &GpuTuning, comma
             [(BlockOrder::Auto, "auto"), (BlockOrder::Forward, "forward"), (BlockOrder::Alternating, "alternating")]
         {
             ui.selectable_value(&mut draft.block_order, value, label);
+        }
+    });
+    ui.horizontal(|ui| {
+        ui.label("self-collision candidates");
+        for (value, label) in [
+            (CandidateListing::Auto, "auto"),
+            (CandidateListing::Lanes, "in lanes"),
+            (CandidateListing::OnePerVertex, "one per vertex"),
+        ] {
+            ui.selectable_value(&mut draft.candidate_listing, value, label);
         }
     });
     if let Err(e) = draft.check() {
