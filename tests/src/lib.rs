@@ -142,6 +142,29 @@ pub fn gpu_lock() -> std::sync::MutexGuard<'static, ()> {
     GPU_CASES.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// Instantiates each case of the calling test file (a `fn(&Backend)` there) for every backend,
+/// as `mod cpu { #[test] fn case() }`, `mod cpu_f64`, `mod wgpu` and `mod vulkano`, each run by
+/// [`run_case`].
+#[macro_export]
+macro_rules! for_every_backend {
+    ($($case:ident),* $(,)?) => {
+        $crate::for_every_backend!(@backend cpu, $crate::CPU, [$($case),*]);
+        $crate::for_every_backend!(@backend cpu_f64, $crate::CPU_F64, [$($case),*]);
+        $crate::for_every_backend!(@backend wgpu, $crate::WGPU, [$($case),*]);
+        $crate::for_every_backend!(@backend vulkano, $crate::VULKANO, [$($case),*]);
+    };
+    (@backend $backend:ident, $value:path, [$($case:ident),*]) => {
+        mod $backend {
+            $(
+                #[test]
+                fn $case() {
+                    $crate::run_case(&$value, stringify!($case), super::$case);
+                }
+            )*
+        }
+    };
+}
+
 /// Runs one case on one backend, honouring [`EXPECTED_DIFFERENCES`].
 pub fn run_case(backend: &Backend, case_name: &str, case: fn(&Backend)) {
     let _gpu = (!backend.name.starts_with("cpu")).then(gpu_lock);

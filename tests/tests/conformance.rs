@@ -1049,57 +1049,28 @@ fn thirty_gpu_simulators_in_one_process_all_start() {
     }
 }
 
-/// Instantiates every case for one backend, as `mod backend { #[test] fn case() }`.
-macro_rules! cases_for_backend {
-    ($backend:ident, $value:path, [$($case:ident),* $(,)?]) => {
-        mod $backend {
-            $(
-                #[test]
-                fn $case() {
-                    cloth_conformance::run_case(&$value, stringify!($case), super::$case);
-                }
-            )*
-        }
-    };
-}
-
-/// Instantiates every case for every backend.
-macro_rules! conformance {
-    (backends: [$($backend:ident => $value:path),* $(,)?], cases: $cases:tt) => {
-        $( cases_for_backend!($backend, $value, $cases); )*
-    };
-}
-
-conformance! {
-    backends: [
-        cpu => cloth_conformance::CPU,
-        cpu_f64 => cloth_conformance::CPU_F64,
-        wgpu => cloth_conformance::WGPU,
-        vulkano => cloth_conformance::VULKANO,
-    ],
-    cases: [
-        short_horizon_matches_the_references,
-        higher_order_integrators_match_the_reference_on_a_short_horizon,
-        every_collider_kind_matches_the_reference,
-        xpbd_matches_the_reference,
-        driven_effects_match_the_reference,
-        driven_effects_move_the_cloth,
-        an_absent_effect_equals_zero_strength,
-        self_collision_matches_the_reference,
-        self_collision_in_a_stack_of_layers_matches_the_reference,
-        turning_pin_groups_match_the_reference,
-        bit_exact_with_the_f32_reference,
-        tiled_and_one_substep_euler_agree,
-        long_horizon_outcomes_agree,
-        changing_the_grid_changes_the_vertex_count,
-        moving_or_resizing_the_sphere_moves_the_rest_position,
-        without_gravity_a_flat_cloth_stays_at_rest,
-        springs_alone_oscillate_about_the_rest_shape,
-        each_spring_kind_alone_gives_hookes_force,
-        friction_holds_and_its_absence_lets_go,
-        pinned_vertices_stay_put,
-        state_handover_round_trips_exactly,
-    ]
+cloth_conformance::for_every_backend! {
+    short_horizon_matches_the_references,
+    higher_order_integrators_match_the_reference_on_a_short_horizon,
+    every_collider_kind_matches_the_reference,
+    xpbd_matches_the_reference,
+    driven_effects_match_the_reference,
+    driven_effects_move_the_cloth,
+    an_absent_effect_equals_zero_strength,
+    self_collision_matches_the_reference,
+    self_collision_in_a_stack_of_layers_matches_the_reference,
+    turning_pin_groups_match_the_reference,
+    bit_exact_with_the_f32_reference,
+    tiled_and_one_substep_euler_agree,
+    long_horizon_outcomes_agree,
+    changing_the_grid_changes_the_vertex_count,
+    moving_or_resizing_the_sphere_moves_the_rest_position,
+    without_gravity_a_flat_cloth_stays_at_rest,
+    springs_alone_oscillate_about_the_rest_shape,
+    each_spring_kind_alone_gives_hookes_force,
+    friction_holds_and_its_absence_lets_go,
+    pinned_vertices_stay_put,
+    state_handover_round_trips_exactly,
 }
 
 /// The same scene on the two GPU backends agrees within the f32 tolerance after a few frames.

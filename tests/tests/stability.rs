@@ -729,57 +729,30 @@ fn twist_passes_through_itself_without_self_collision(backend: &Backend) {
     passes_through_itself(backend, &scene, 10);
 }
 
-macro_rules! cases_for_backend {
-    ($backend:ident, $value:path, [$($case:ident),* $(,)?]) => {
-        mod $backend {
-            $(
-                #[test]
-                fn $case() {
-                    cloth_conformance::run_case(&$value, stringify!($case), super::$case);
-                }
-            )*
-        }
-    };
-}
-
-macro_rules! stability_suite {
-    (backends: [$($backend:ident => $value:path),* $(,)?], cases: $cases:tt) => {
-        $( cases_for_backend!($backend, $value, $cases); )*
-    };
-}
-
-stability_suite! {
-    backends: [
-        cpu => cloth_conformance::CPU,
-        cpu_f64 => cloth_conformance::CPU_F64,
-        wgpu => cloth_conformance::WGPU,
-        vulkano => cloth_conformance::VULKANO,
-    ],
-    cases: [
-        stiff_springs_with_auto_substeps,
-        step_at_0_95_of_the_bound,
-        light_vertices_of_1e_5_kg,
-        heavy_vertices_of_10_kg,
-        impact_at_30_m_s_does_not_tunnel,
-        starting_inside_the_sphere_is_pushed_out,
-        two_overlapping_spheres,
-        sphere_smaller_than_a_cell,
-        fast_moving_sphere,
-        soak_of_a_million_substeps,
-        live_stiffness_change_of_100_times,
-        resting_drape_does_not_creep,
-        floor_landing_rests,
-        floor_at_10_m_s_does_not_tunnel,
-        tilted_table_holds_with_friction_and_slides_without,
-        cloth_falls_across_a_capsule,
-        cloth_falls_onto_a_mesh,
-        heap_passes_through_itself_without_self_collision,
-        heap_with_self_collision_never_passes_through_itself,
-        twist_passes_through_itself_without_self_collision,
-        twist_with_self_collision_never_passes_through_itself,
-        folded_drape_never_passes_through_itself,
-        cloth_sliding_off_a_box_never_passes_through_itself,
-    ]
+cloth_conformance::for_every_backend! {
+    stiff_springs_with_auto_substeps,
+    step_at_0_95_of_the_bound,
+    light_vertices_of_1e_5_kg,
+    heavy_vertices_of_10_kg,
+    impact_at_30_m_s_does_not_tunnel,
+    starting_inside_the_sphere_is_pushed_out,
+    two_overlapping_spheres,
+    sphere_smaller_than_a_cell,
+    fast_moving_sphere,
+    soak_of_a_million_substeps,
+    live_stiffness_change_of_100_times,
+    resting_drape_does_not_creep,
+    floor_landing_rests,
+    floor_at_10_m_s_does_not_tunnel,
+    tilted_table_holds_with_friction_and_slides_without,
+    cloth_falls_across_a_capsule,
+    cloth_falls_onto_a_mesh,
+    heap_passes_through_itself_without_self_collision,
+    heap_with_self_collision_never_passes_through_itself,
+    twist_passes_through_itself_without_self_collision,
+    twist_with_self_collision_never_passes_through_itself,
+    folded_drape_never_passes_through_itself,
+    cloth_sliding_off_a_box_never_passes_through_itself,
 }
 
 /// Grids at the device's limits: the largest square grid each GPU backend accepts runs a

@@ -83,6 +83,20 @@ pub struct SweepInputs<'a, R> {
     pub step: R,
 }
 
+/// Vertex `i`'s springs as [`local_step`] takes them, `(x_j, L0, k)`: the other end's position in
+/// `positions` (m), the rest length (m) and the stiffness of the spring's kind (N/m).
+pub fn springs_of<'a, R: Real>(
+    positions: &'a [Vec3<R>],
+    adjacency: &'a Adjacency,
+    i: usize,
+    stiffness: [R; 3],
+) -> impl Iterator<Item = (Vec3<R>, R, R)> + 'a {
+    adjacency
+        .of(i)
+        .iter()
+        .map(move |end| (positions[end.other as usize], R::of(end.rest_length), stiffness[end.kind as usize]))
+}
+
 /// One Vertex Block Descent iteration over `positions` (m): each colour in turn, and within a
 /// colour the free vertices in `order` (vertex indices, every vertex once), each moved by its
 /// [`local_step`]. A colour's vertices share no spring, so the order within a colour does not
@@ -93,10 +107,7 @@ pub fn sweep<R: Real>(positions: &mut [Vec3<R>], inputs: &SweepInputs<'_, R>, or
             if !inputs.free[i] || vertex_color((i % inputs.nx) as u32, (i / inputs.nx) as u32) != color {
                 continue;
             }
-            let springs = inputs.adjacency.of(i).iter().map(|end| {
-                let other = positions[end.other as usize];
-                (other, R::of(end.rest_length), inputs.stiffness[end.kind as usize])
-            });
+            let springs = springs_of(positions, inputs.adjacency, i, inputs.stiffness);
             positions[i] = local_step(positions[i], inputs.predicted[i], inputs.masses[i], inputs.step, springs);
         }
     }
@@ -168,11 +179,7 @@ mod tests {
             let mut p = x.clone();
             for &i in order {
                 if free[i] {
-                    let springs = adjacency
-                        .of(i)
-                        .iter()
-                        .map(|e| (p[e.other as usize], e.rest_length, [400.0, 200.0, 100.0][e.kind as usize]));
-                    p[i] = local_step(p[i], y[i], 0.02, 1e-2, springs);
+                    p[i] = local_step(p[i], y[i], 0.02, 1e-2, springs_of(&p, &adjacency, i, [400.0, 200.0, 100.0]));
                 }
             }
             p
@@ -201,10 +208,7 @@ mod tests {
             (0..n)
                 .filter(|&i| free[i])
                 .map(|i| {
-                    let springs = adjacency
-                        .of(i)
-                        .iter()
-                        .map(|e| (p[e.other as usize], e.rest_length, stiffness[e.kind as usize]));
+                    let springs = springs_of(p, &adjacency, i, stiffness);
                     local_gradient_and_hessian(p[i], y[i], masses[i], 1e-2, springs).0.length()
                 })
                 .fold(0.0, f64::max)
