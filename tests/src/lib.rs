@@ -136,7 +136,7 @@ pub fn create_tuned(backend: &Backend, scene: &Scene, tuning: &GpuTuning) -> Opt
 /// that is understood, a test binary never drives two lavapipe devices at once.
 static GPU_CASES: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
-/// Takes the GPU lock (see [`GPU_CASES`]): every test that drives a GPU backend holds it.
+/// Takes the GPU lock (see `GPU_CASES`): every test that drives a GPU backend holds it.
 pub fn gpu_lock() -> std::sync::MutexGuard<'static, ()> {
     // A case that panicked while holding the lock has already failed its own test.
     GPU_CASES.lock().unwrap_or_else(|e| e.into_inner())
