@@ -35,18 +35,6 @@ fn energy_scale(model: &ClothModel, e0: &Energy) -> f64 {
     e0.kinetic + e0.elastic.iter().sum::<f64>() + e0.gravitational.abs() + e0.contact + weight * diagonal
 }
 
-fn max_strain(model: &ClothModel, state: &ClothState) -> f64 {
-    model
-        .springs
-        .iter()
-        .map(|s| {
-            let (a, b) = (state.positions[s.a as usize], state.positions[s.b as usize]);
-            let l = (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum::<f64>().sqrt();
-            (l / s.rest_length - 1.0).abs()
-        })
-        .fold(0.0, f64::max)
-}
-
 /// What a run measured.
 struct Outcome {
     name: String,
@@ -86,7 +74,7 @@ fn run_checked_with_work(
     let mut outcome = Outcome {
         name,
         energies: vec![e0.total()],
-        max_strain: max_strain(&model, &first),
+        max_strain: model.max_strain(&first),
         states: vec![first],
         model,
         max_penetration_m: 0.0,
@@ -105,7 +93,7 @@ fn run_checked_with_work(
             "{name}: energy {e:.6e} J at frame {done} above the initial {:.6e} J plus the tolerance (limit {limit:.6e} J)",
             outcome.energies[0]
         );
-        outcome.max_strain = outcome.max_strain.max(max_strain(&outcome.model, &state));
+        outcome.max_strain = outcome.max_strain.max(outcome.model.max_strain(&state));
         outcome.energies.push(e);
         outcome.states.push(state);
     }

@@ -97,6 +97,19 @@ impl ClothModel {
         crate::coloring::SpringColors::new(&self.springs, self.grid.nx)
     }
 
+    /// The largest strain of a spring in `state`, `max |L / L0 − 1|` over the springs (0: every
+    /// spring at its rest length).
+    pub fn max_strain(&self, state: &crate::ClothState) -> f64 {
+        self.springs
+            .iter()
+            .map(|s| {
+                let (a, b) = (state.positions[s.a as usize], state.positions[s.b as usize]);
+                let l = (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum::<f64>().sqrt();
+                (l / s.rest_length - 1.0).abs()
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Number of springs of each kind, `[structural, shear, bend]`.
     pub fn spring_counts(&self) -> [usize; 3] {
         springs::count_by_kind(&self.springs)
@@ -122,6 +135,24 @@ impl ClothModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_largest_strain_is_that_of_the_most_stretched_spring() {
+        let scene =
+            Scene { cloth: crate::scene::ClothSpec { resolution: [4, 3], ..Default::default() }, ..Default::default() };
+        let model = ClothModel::new(&scene);
+        let positions: Vec<[f32; 3]> =
+            model.grid.positions.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect();
+        let mut state = crate::ClothState { time_s: 0.0, velocities: vec![[0.0; 3]; positions.len()], positions };
+        assert!(model.max_strain(&state) < 1e-6, "at rest: {}", model.max_strain(&state));
+        // A corner moved out along its row by a fifth of the spacing: its structural spring along
+        // the row stretches by 20%, more than any other.
+        let spacing = scene.cloth.spacing()[0];
+        let [x0, x1] = [model.grid.positions[0][0], model.grid.positions[1][0]];
+        let outward = (x0 - x1).signum() * 0.2 * spacing;
+        state.positions[0][0] += outward as f32;
+        assert!((model.max_strain(&state) - 0.2).abs() < 1e-4, "{}", model.max_strain(&state));
+    }
 
     #[test]
     fn every_spring_is_listed_at_both_ends() {

@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use cloth_backends::Backend;
-use cloth_core::{ClothModel, ClothState, CpuSimulatorF64, Energy, Integrator, Scene, SimError, Simulator, Substeps};
+use cloth_core::{ClothModel, CpuSimulatorF64, Energy, Integrator, Scene, SimError, Simulator, Substeps};
 
 /// The reference run: f64 CPU, RK4, a step far below the sweep's.
 pub struct Reference {
@@ -162,18 +162,6 @@ impl From<SimError> for RunError {
     }
 }
 
-fn max_strain(model: &ClothModel, state: &ClothState) -> f64 {
-    model
-        .springs
-        .iter()
-        .map(|s| {
-            let (a, b) = (state.positions[s.a as usize], state.positions[s.b as usize]);
-            let l = (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum::<f64>().sqrt();
-            (l / s.rest_length - 1.0).abs()
-        })
-        .fold(0.0, f64::max)
-}
-
 /// Frames between two reads of the GPU timer: the device holds 256 advances' timestamps.
 const TIMER_READ_EVERY: u32 = 200;
 
@@ -237,7 +225,7 @@ pub fn run(
         rms_error_m: rms,
         max_error_m: max_error,
         energy_drift: (Energy::of(&reference.model, &state).total() - reference.energy_j) / reference.energy_scale_j,
-        max_strain: max_strain(&reference.model, &state),
+        max_strain: reference.model.max_strain(&state),
         max_penetration_m: penetration,
         finite: state.non_finite_count() == 0,
         wall_ms_per_simulated_s: seconds * 1e3 / simulated_s,
