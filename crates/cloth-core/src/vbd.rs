@@ -154,50 +154,68 @@ mod tests {
         assert!(gradient.length() < 1e-9, "a minimum: {gradient:?}");
     }
 
-    /// A 9 × 7 cloth of 0.1 m spacing, its first row pinned, crumpled, with every vertex's
-    /// inertial prediction a metre-per-second step away from where it is.
-    fn crumpled() -> (Grid, Adjacency, Vec<Vec3<f64>>, Vec<Vec3<f64>>) {
-        let grid = Grid::new(&ClothSpec { resolution: [9, 7], size: [0.8, 0.6], ..Default::default() });
-        let springs = crate::springs::generate(&grid, EffectSet::mass_spring());
-        let adjacency = Adjacency::new(grid.vertex_count(), &springs);
-        let wobble = |i: usize| v((1.3 * i as f64).sin(), (0.7 * i as f64).cos(), (2.1 * i as f64).sin()) * 0.02;
-        let x: Vec<Vec3<f64>> =
-            grid.positions.iter().enumerate().map(|(i, p)| Vec3::from_f64(*p) + wobble(i)).collect();
-        let y = x.iter().map(|&p| p + v(0.0, -0.01, 0.003)).collect();
-        (grid, adjacency, x, y)
+    const STIFFNESS: [f64; 3] = [400.0, 200.0, 100.0];
+
+    /// A 9 × 7 cloth of 0.1 m spacing and 0.02 kg a vertex, its first row pinned, crumpled,
+    /// with every vertex's inertial prediction a centimetre's step away from where it is.
+    struct Crumpled {
+        adjacency: Adjacency,
+        x: Vec<Vec3<f64>>,
+        y: Vec<Vec3<f64>>,
+        masses: Vec<f64>,
+        free: Vec<bool>,
+    }
+
+    impl Crumpled {
+        fn new() -> Self {
+            let grid = Grid::new(&ClothSpec { resolution: [9, 7], size: [0.8, 0.6], ..Default::default() });
+            let springs = crate::springs::generate(&grid, EffectSet::mass_spring());
+            let n = grid.vertex_count();
+            let wobble = |i: usize| v((1.3 * i as f64).sin(), (0.7 * i as f64).cos(), (2.1 * i as f64).sin()) * 0.02;
+            let x: Vec<Vec3<f64>> =
+                grid.positions.iter().enumerate().map(|(i, p)| Vec3::from_f64(*p) + wobble(i)).collect();
+            let y = x.iter().map(|&p| p + v(0.0, -0.01, 0.003)).collect();
+            Self {
+                adjacency: Adjacency::new(n, &springs),
+                x,
+                y,
+                masses: vec![0.02; n],
+                free: (0..n).map(|i| i >= 9).collect(),
+            }
+        }
+
+        fn inputs(&self) -> SweepInputs<'_, f64> {
+            SweepInputs {
+                nx: 9,
+                masses: &self.masses,
+                free: &self.free,
+                predicted: &self.y,
+                adjacency: &self.adjacency,
+                stiffness: STIFFNESS,
+                step: 1e-2,
+            }
+        }
     }
 
     #[test]
     fn a_colours_vertices_move_alike_in_any_order() {
-        let (grid, adjacency, x, y) = crumpled();
-        let n = grid.vertex_count();
-        let masses = vec![0.02; n];
-        let free: Vec<bool> = (0..n).map(|i| i >= 9).collect();
-        let inputs = SweepInputs {
-            nx: 9,
-            masses: &masses,
-            free: &free,
-            predicted: &y,
-            adjacency: &adjacency,
-            stiffness: [400.0, 200.0, 100.0],
-            step: 1e-2,
-        };
+        let cloth = Crumpled::new();
+        let (x, y, n) = (&cloth.x, &cloth.y, cloth.x.len());
+        let inputs = cloth.inputs();
         let forward: Vec<usize> = (0..n).collect();
         let backward: Vec<usize> = (0..n).rev().collect();
         let (mut a, mut b) = (x.clone(), x.clone());
         sweep(&mut a, &inputs, &forward);
         sweep(&mut b, &inputs, &backward);
         assert_eq!(a, b, "no two vertices of a colour share a spring: the order is free");
-        assert_ne!(a, x, "the sweep moved the cloth");
+        assert_ne!(&a, x, "the sweep moved the cloth");
         assert_eq!(a[..9], x[..9], "the pinned row stays");
         // Without the colours (all vertices in one pass, in index order and backward) the
         // result depends on the order: the test could fail.
         let one_pass = |order: &[usize]| {
             let mut p = x.clone();
-            for &i in order {
-                if free[i] {
-                    p[i] = local_step(p[i], y[i], 0.02, 1e-2, springs_of(&p, &adjacency, i, [400.0, 200.0, 100.0]));
-                }
+            for &i in order.iter().filter(|&&i| cloth.free[i]) {
+                p[i] = local_step(p[i], y[i], 0.02, 1e-2, springs_of(&p, &cloth.adjacency, i, STIFFNESS));
             }
             p
         };
@@ -206,26 +224,17 @@ mod tests {
 
     #[test]
     fn sweeps_converge_to_the_implicit_step() {
-        let (grid, adjacency, x, y) = crumpled();
-        let n = grid.vertex_count();
-        let masses = vec![0.02; n];
-        let free: Vec<bool> = (0..n).map(|i| i >= 9).collect();
-        let stiffness = [400.0, 200.0, 100.0];
-        let inputs = SweepInputs {
-            nx: 9,
-            masses: &masses,
-            free: &free,
-            predicted: &y,
-            adjacency: &adjacency,
-            stiffness,
-            step: 1e-2,
-        };
+        let cloth = Crumpled::new();
+        let (x, y, n) = (&cloth.x, &cloth.y, cloth.x.len());
+        let (free, masses, adjacency) = (&cloth.free, &cloth.masses, &cloth.adjacency);
+        let inputs = cloth.inputs();
+        let stiffness = STIFFNESS;
         let order: Vec<usize> = (0..n).collect();
         let largest_gradient = |p: &[Vec3<f64>]| {
             (0..n)
                 .filter(|&i| free[i])
                 .map(|i| {
-                    let springs = springs_of(p, &adjacency, i, stiffness);
+                    let springs = springs_of(p, adjacency, i, stiffness);
                     local_gradient_and_hessian(p[i], y[i], masses[i], 1e-2, springs).0.length()
                 })
                 .fold(0.0, f64::max)
