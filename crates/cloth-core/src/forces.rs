@@ -97,6 +97,28 @@ pub fn spring_damping_block<R: Real>(x_i: Vec3<R>, x_j: Vec3<R>, damping: R) -> 
     Mat3::outer(u, u) * damping
 }
 
+/// The stiffness block of a contact, N/m: `K_c = k_c n nᵀ` where the vertex is inside the
+/// collider (`φ < 0`), zero outside, so that `∂F/∂x ≈ −K_c` for [`contact_force`]'s penalty
+/// `k_c d n` (`d = −φ(x)`, `∇φ = n`). Exact for a plane; on a curved collider the change of the
+/// normal adds `k_c d ∂n/∂x`, a term across the normal that would make `K_c` indefinite, and is
+/// left out, as for a compressed spring.
+pub fn contact_stiffness_block<R: Real>(surface: Surface<R>, stiffness: R) -> Mat3<R> {
+    if surface.distance >= R::zero() {
+        return Mat3::zero();
+    }
+    Mat3::outer(surface.normal, surface.normal) * stiffness
+}
+
+/// The damping block of a contact, N·s/m: `C_c = c n nᵀ` while the vertex, inside, approaches the
+/// surface at `v` (`v · n < 0`), zero otherwise: the velocity Jacobian of [`contact_force`]'s
+/// damping `−c min(v · n, 0) n` at `v` (m/s, relative to the collider).
+pub fn contact_damping_block<R: Real>(v: Vec3<R>, surface: Surface<R>, damping: R) -> Mat3<R> {
+    if surface.distance >= R::zero() || v.dot(surface.normal) >= R::zero() {
+        return Mat3::zero();
+    }
+    Mat3::outer(surface.normal, surface.normal) * damping
+}
+
 /// Linear air drag, `F = −m γ v` (N), with `γ` in 1/s. An addition to the mass-spring model: the `AirDrag` effect.
 pub fn air_drag_force<R: Real>(mass: R, rate: R, v: Vec3<R>) -> Vec3<R> {
     v * (-(mass * rate))
@@ -230,6 +252,31 @@ pub fn integrate<R: Real>(x: Vec3<R>, v: Vec3<R>, resultant: Vec3<R>, mass: R, d
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_contacts_blocks_are_its_force_jacobians_on_a_plane() {
+        // A tilted plane through p with normal n; the vertex 4 mm inside, approaching.
+        let n = Vec3::new(0.0, 0.8, 0.6);
+        let p = Vec3::new(0.1, 0.2, -0.3);
+        let (k, c) = (1000.0, 0.2);
+        let surface = |x: Vec3<f64>| Surface { distance: (x - p).dot(n), normal: n };
+        let force = |x: Vec3<f64>, v: Vec3<f64>| contact_force(v, surface(x), k, c).map_or(Vec3::zero(), |c| c.force);
+        let x = p - n * 0.004 + Vec3::new(0.3, 0.0, 0.0);
+        let v = n * -0.5;
+        let (stiffness, damping) = (contact_stiffness_block(surface(x), k), contact_damping_block(v, surface(x), c));
+        let h = 1e-7;
+        for e in Mat3::<f64>::identity().rows {
+            let dx = (force(x + e * h, v) - force(x - e * h, v)) * (0.5 / h);
+            assert!((dx + stiffness.mul_vec(e)).length() < 1e-6 * k, "∂F/∂x {dx:?}");
+            let dv = (force(x, v + e * h) - force(x, v - e * h)) * (0.5 / h);
+            assert!((dv + damping.mul_vec(e)).length() < 1e-6, "∂F/∂v {dv:?}");
+        }
+        // Separating: no damping; outside: nothing.
+        assert_eq!(contact_damping_block(-v, surface(x), c), Mat3::zero());
+        let outside = x + n * 0.01;
+        assert_eq!(contact_stiffness_block(surface(outside), k), Mat3::zero());
+        assert_eq!(force(outside, v), Vec3::zero());
+    }
 
     /// The Hooke force on `i` from a spring to `j` (no damping), N.
     fn hooke(x_i: Vec3<f64>, x_j: Vec3<f64>, rest: f64, k: f64) -> Vec3<f64> {
