@@ -841,11 +841,9 @@ mod tests {
             let on = contact_states(&alone, &state);
             assert!(on.iter().any(|c| *c != ContactState::Free), "collider {k}: the test needs cloth resting on it");
         }
-        let context = match cloth_wgpu::GpuContext::new(None) {
-            Ok(c) => c,
-            Err(e) if std::env::var_os("CI").is_none() => return eprintln!("SKIPPED: {e}"),
-            Err(e) => panic!("no wgpu adapter and CI is set: {e}"),
-        };
+        // No adapter fails the test (the README's test command installs lavapipe): it never
+        // passes without having compared the colours.
+        let context = cloth_wgpu::GpuContext::new(None).unwrap_or_else(|e| panic!("no wgpu adapter: {e}"));
         let gpu = gpu_vertex_colors(&context, &scene, &state, &colliders);
         let palette = [(ContactState::Free, [0.55, 0.6, 0.75]), (ContactState::Sticking, [0.2, 0.8, 0.3])];
         let palette = [palette[0], palette[1], (ContactState::Sliding, [0.95, 0.25, 0.15])];
