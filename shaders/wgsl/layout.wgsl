@@ -72,6 +72,14 @@ struct ColorRange {
     pad: u32,
 }
 
+// cloth_gpu::layout::GpuVbdSweep (16 bytes): what a VBD colour pass needs of its sweep.
+struct VbdSweep {
+    omega: f32,              // Chebyshev's weight of the sweep
+    chebyshev: u32,          // 1: Chebyshev acceleration on
+    pad0: u32,
+    pad1: u32,
+}
+
 // cloth_gpu::layout::GpuSelfControl (2096 bytes): self-collision's check and the substeps share
 // it.
 struct SelfControl {

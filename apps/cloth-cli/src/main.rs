@@ -34,7 +34,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use cloth_backends as backends;
 use cloth_core::budget::{WorkBudget, WorkPlan};
-use cloth_core::{ClothModel, Energy, Scene, Substeps, intersections, stability};
+use cloth_core::{ClothModel, Energy, Integrator, Scene, Substeps, intersections, stability};
 use cloth_gpu::memory::MemoryEstimate;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -106,6 +106,10 @@ struct RunArgs {
     /// Substeps per frame (a number, or `auto`).
     #[arg(long, value_parser = parse_substeps)]
     substeps: Option<Substeps>,
+    /// Time integrator instead of the scene's: euler, verlet, rk4, xpbd, backward-euler or vbd
+    /// (the implicit ones take their iterations from the scene's `solver` field).
+    #[arg(long, value_parser = parse_integrator)]
+    integrator: Option<Integrator>,
     /// Print one JSON object instead of the text summary.
     #[arg(long)]
     json: bool,
@@ -217,7 +221,23 @@ fn parse_substeps(text: &str) -> Result<Substeps, String> {
     text.parse::<u32>().map(Substeps::Fixed).map_err(|e| format!("'{text}': {e} (expected a number or 'auto')"))
 }
 
+pub(crate) fn parse_integrator(text: &str) -> Result<Integrator, String> {
+    Integrator::from_name(text).ok_or_else(|| {
+        let all: Vec<&str> = Integrator::ALL.iter().map(|i| i.name()).collect();
+        format!("unknown integrator '{text}': choose among {}", all.join(", "))
+    })
+}
+
 fn load_scene(path: Option<&PathBuf>, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> Result<Scene> {
+    load_scene_with(path, grid, substeps, None)
+}
+
+fn load_scene_with(
+    path: Option<&PathBuf>,
+    grid: Option<[u32; 2]>,
+    substeps: Option<Substeps>,
+    integrator: Option<Integrator>,
+) -> Result<Scene> {
     let mut scene = match path {
         Some(p) => Scene::load(p).with_context(|| format!("cannot use scene {}", p.display()))?,
         None => Scene::default(),
@@ -227,6 +247,9 @@ fn load_scene(path: Option<&PathBuf>, grid: Option<[u32; 2]>, substeps: Option<S
     }
     if let Some(s) = substeps {
         scene.time.substeps = s;
+    }
+    if let Some(i) = integrator {
+        scene.integrator = i;
     }
     let warnings = scene.validate().context("the scene with the command-line overrides is invalid")?;
     for w in warnings {
@@ -382,7 +405,7 @@ struct RunPlan {
 }
 
 fn plan_run(args: &RunArgs) -> Result<RunPlan> {
-    let scene = load_scene(args.scene.as_ref(), args.grid, args.substeps)?;
+    let scene = load_scene_with(args.scene.as_ref(), args.grid, args.substeps, args.integrator)?;
     let backend = backends::find(&args.backend).map_err(anyhow::Error::msg)?;
     let frames = args.frames.unwrap_or(scene.time.frames);
     let mut plan = WorkPlan::default();

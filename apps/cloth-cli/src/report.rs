@@ -87,6 +87,10 @@ pub struct Report {
     pub self_intersections: SelfIntersections,
     /// With `SelfCollision` on a GPU backend: its candidate lists' checks and rebuilds.
     pub self_collision_lists: Option<CandidateLists>,
+    /// The time integrator's short name.
+    pub integrator: &'static str,
+    /// With an implicit integrator: the iterations its solver spent over the run.
+    pub solver_iterations: Option<cloth_core::solver::SolverIterations>,
     /// With `--export`: what was written (set by the caller once the export is finished).
     pub export: Option<Export>,
     pub final_kinetic_energy_j: f64,
@@ -141,6 +145,8 @@ impl Report {
                 rebuilds: l.rebuilds,
                 overflowed_lists: l.overflowed_lists,
             }),
+            integrator: scene.integrator.name(),
+            solver_iterations: diagnostics.solver,
             export: None,
             final_kinetic_energy_j: energy.kinetic,
             final_total_energy_j: energy.total(),
@@ -196,6 +202,21 @@ impl Report {
                 at_end.map_or(String::new(), |n| format!("; {n} crossings at the end"))
             ),
         }?;
+        if let Some(s) = self.solver_iterations {
+            let frames = self.frames.max(1) as f64;
+            let spent = if s.vbd > 0 {
+                format!("{:.0} VBD sweeps a frame", s.vbd as f64 / frames)
+            } else {
+                format!(
+                    "{:.1} Newton iterations and {:.1} CG iterations a frame ({:.1} a solve, at most {})",
+                    s.newton as f64 / frames,
+                    s.cg as f64 / frames,
+                    s.cg_per_solve(),
+                    s.cg_most
+                )
+            };
+            out!("solver      {}: {spent}", self.integrator)?;
+        }
         if let Some(l) = self.self_collision_lists {
             out!(
                 "lists       self-collision's candidate lists checked {} times, rebuilt {} times; {} lists overflowed",

@@ -68,6 +68,20 @@ pub struct LinearisedStep<R> {
     pub free: Vec<bool>,
     /// Every spring's blocks.
     pub springs: Vec<SpringTerms<R>>,
+    /// The contacts' blocks, each on one vertex (`∂F_i/∂x_i = −K_c`, `∂F_i/∂v_i = −C_c`).
+    pub contacts: Vec<ContactTerms<R>>,
+}
+
+/// A contact's part of the system: its vertex and its blocks
+/// ([`crate::forces::contact_stiffness_block`], [`crate::forces::contact_damping_block`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactTerms<R> {
+    /// The vertex in contact.
+    pub vertex: usize,
+    /// `K_c`, N/m.
+    pub stiffness: Mat3<R>,
+    /// `C_c`, N·s/m.
+    pub damping: Mat3<R>,
 }
 
 impl<R: Real> LinearisedStep<R> {
@@ -84,6 +98,9 @@ impl<R: Real> LinearisedStep<R> {
             let pushed = block.mul_vec(at(s.a) - at(s.b));
             out[s.a] += pushed;
             out[s.b] -= pushed;
+        }
+        for c in &self.contacts {
+            out[c.vertex] += (c.damping * h + c.stiffness * (h * h)).mul_vec(at(c.vertex));
         }
         for (o, &free) in out.iter_mut().zip(&self.free) {
             if !free {
@@ -103,6 +120,21 @@ impl<R: Real> LinearisedStep<R> {
         }
     }
 
+    /// `out = K dx + C dv`, N: how much the linearised forces fall when the positions move by `dx`
+    /// (m) and the velocities by `dv` (m/s), on every vertex, pinned ones included (a pinned
+    /// vertex's prescribed motion enters its free neighbours' right-hand side through it).
+    pub fn force_drop(&self, dx: &[Vec3<R>], dv: &[Vec3<R>], out: &mut [Vec3<R>]) {
+        out.fill(Vec3::zero());
+        for s in &self.springs {
+            let pushed = s.stiffness.mul_vec(dx[s.a] - dx[s.b]) + s.damping.mul_vec(dv[s.a] - dv[s.b]);
+            out[s.a] += pushed;
+            out[s.b] -= pushed;
+        }
+        for c in &self.contacts {
+            out[c.vertex] += c.stiffness.mul_vec(dx[c.vertex]) + c.damping.mul_vec(dv[c.vertex]);
+        }
+    }
+
     /// The inverse of each vertex's 3 × 3 diagonal block of `A`, `m I + Σ_s (h C_s + h² K_s)`
     /// (the identity at a pinned vertex): the block-Jacobi preconditioner.
     pub fn block_jacobi(&self) -> Vec<Mat3<R>> {
@@ -112,6 +144,9 @@ impl<R: Real> LinearisedStep<R> {
             let block = s.damping * h + s.stiffness * (h * h);
             diagonal[s.a] = diagonal[s.a] + block;
             diagonal[s.b] = diagonal[s.b] + block;
+        }
+        for c in &self.contacts {
+            diagonal[c.vertex] = diagonal[c.vertex] + c.damping * h + c.stiffness * (h * h);
         }
         diagonal
             .iter()
@@ -242,6 +277,18 @@ mod tests {
             masses: vec![0.02; n],
             free: (0..n).map(|i| !pinned || i >= 7).collect(),
             springs: terms,
+            // Two vertices pressed into a tilted plane, one of them approaching it.
+            contacts: [(10, 0.0), (23, -0.4)]
+                .map(|(vertex, approach)| {
+                    let normal = v(0.0, 0.8, 0.6);
+                    let surface = crate::colliders::Surface { distance: -0.004, normal };
+                    ContactTerms {
+                        vertex,
+                        stiffness: crate::forces::contact_stiffness_block(surface, 2000.0),
+                        damping: crate::forces::contact_damping_block(normal * approach, surface, 0.3),
+                    }
+                })
+                .to_vec(),
         }
     }
 
@@ -294,11 +341,15 @@ mod tests {
             masses: vec![m, m],
             free: vec![false, true],
             springs: vec![SpringTerms::new(0, 1, x0, x1, rest, k, c)],
+            contacts: Vec::new(),
         };
         let f = -k * (0.12 - rest) - c * v1;
         let mut kv = vec![Vec3::zero(); 2];
         system.stiffness_times(&[Vec3::zero(), v(v1, 0.0, 0.0)], &mut kv);
         assert!((kv[1].x - k * v1).abs() < 1e-12, "K v at the free end: {:?}", kv[1]);
+        let mut drop = vec![Vec3::zero(); 2];
+        system.force_drop(&[Vec3::zero(), v(v1, 0.0, 0.0)], &[Vec3::zero(), v(2.0, 0.0, 0.0)], &mut drop);
+        assert!((drop[1].x - (k * v1 + c * 2.0)).abs() < 1e-12, "K dx + C dv: {:?}", drop[1]);
         let b = vec![Vec3::zero(), v(h * (f - h * kv[1].x), 0.0, 0.0)];
         let mut dv = vec![Vec3::zero(); 2];
         let report = conjugate_gradients(&system, &system.block_jacobi(), &b, &mut dv, 1e-14, 10);

@@ -27,6 +27,18 @@
 //!   ([`crate::coloring`]): on the GPU one dispatch per colour, on the CPU the same order, so both
 //!   compute the same thing.
 //!
+//! * [`Integrator::BackwardEuler`]: implicit Euler, `v' = v + h M⁻¹ f(x', v')`, `x' = x + h v'`,
+//!   solved by Newton's method; the first iteration is Baraff and Witkin's linearised step, each
+//!   a linear solve `(M + h C + h² K) Δv = b` by conjugate gradients with a 3 × 3 block-Jacobi
+//!   preconditioner ([`crate::implicit`]). First order, stable at any step, and numerically
+//!   dissipative: it damps the fast modes it cannot resolve.
+//! * [`Integrator::Vbd`]: Vertex Block Descent (Chen, Macklin et al. 2024), the same implicit-Euler
+//!   problem minimised as an incremental potential by per-vertex Newton steps, Gauss–Seidel over
+//!   the five colours of the grid's vertex colouring ([`crate::vbd`], [`crate::coloring`]). First
+//!   order, stable at any step; with few sweeps it behaves as a softer cloth.
+//!
+//! Both take their iteration counts from the scene's `solver` field ([`crate::solver`]).
+//!
 //! Contact and friction keep the model's meaning under every integrator: they are forces of the
 //! state each stage evaluates. The friction's "stop within this step" term uses the step its
 //! velocity update spans: `Δt` for Euler and RK4, `½Δt` for each half kick of Verlet.
@@ -45,6 +57,10 @@ pub enum Integrator {
     RungeKutta4,
     /// Extended position-based dynamics (stable at large steps).
     Xpbd,
+    /// Backward Euler: Newton iterations of preconditioned conjugate gradients.
+    BackwardEuler,
+    /// Vertex Block Descent: per-vertex Newton steps over a vertex colouring.
+    Vbd,
 }
 
 /// Gauss–Seidel sweeps over the constraints per XPBD substep.
@@ -52,12 +68,32 @@ pub const XPBD_ITERATIONS: u32 = 10;
 
 impl Integrator {
     /// Every integrator.
-    pub const ALL: [Integrator; 4] =
-        [Integrator::SemiImplicitEuler, Integrator::VelocityVerlet, Integrator::RungeKutta4, Integrator::Xpbd];
+    pub const ALL: [Integrator; 6] = [
+        Integrator::SemiImplicitEuler,
+        Integrator::VelocityVerlet,
+        Integrator::RungeKutta4,
+        Integrator::Xpbd,
+        Integrator::BackwardEuler,
+        Integrator::Vbd,
+    ];
 
     /// The force-based (explicit) integrators: conditionally stable, with a theoretical order.
     pub const EXPLICIT: [Integrator; 3] =
         [Integrator::SemiImplicitEuler, Integrator::VelocityVerlet, Integrator::RungeKutta4];
+
+    /// The integrators that solve the implicit-Euler problem of each substep.
+    pub const IMPLICIT: [Integrator; 2] = [Integrator::BackwardEuler, Integrator::Vbd];
+
+    /// Whether it solves each substep's implicit-Euler problem (backward Euler, VBD).
+    pub fn is_implicit(self) -> bool {
+        Integrator::IMPLICIT.contains(&self)
+    }
+
+    /// Whether it has no stability limit, so that `Substeps::Auto` chooses its step for
+    /// accuracy (XPBD and the implicit integrators).
+    pub fn unconditionally_stable(self) -> bool {
+        self.stability_limit().is_infinite()
+    }
 
     /// Order of accuracy of the positions for smooth, conservative forces.
     pub fn order(self) -> u32 {
@@ -65,7 +101,7 @@ impl Integrator {
             Integrator::SemiImplicitEuler => 1,
             Integrator::VelocityVerlet => 2,
             Integrator::RungeKutta4 => 4,
-            Integrator::Xpbd => 1,
+            Integrator::Xpbd | Integrator::BackwardEuler | Integrator::Vbd => 1,
         }
     }
 
@@ -75,17 +111,21 @@ impl Integrator {
             Integrator::SemiImplicitEuler | Integrator::VelocityVerlet => 2.0,
             // RK4's stability region reaches ±2√2 along the imaginary axis (undamped springs).
             Integrator::RungeKutta4 => 2.0 * std::f64::consts::SQRT_2,
-            Integrator::Xpbd => f64::INFINITY,
+            Integrator::Xpbd | Integrator::BackwardEuler | Integrator::Vbd => f64::INFINITY,
         }
     }
 
-    /// Passes over the springs per substep (force evaluations, or constraint sweeps for XPBD).
-    pub fn stages(self) -> u32 {
+    /// Passes over the springs per substep (force evaluations, constraint sweeps for XPBD, at
+    /// the `solver`'s settings for the implicit integrators: one a conjugate-gradient iteration
+    /// at most, or one a VBD sweep).
+    pub fn stages(self, solver: &crate::solver::SolverSpec) -> u32 {
         match self {
             Integrator::SemiImplicitEuler => 1,
             Integrator::VelocityVerlet => 2,
             Integrator::RungeKutta4 => 4,
             Integrator::Xpbd => XPBD_ITERATIONS,
+            Integrator::BackwardEuler => solver.newton_iterations * (1 + solver.cg_max_iterations),
+            Integrator::Vbd => solver.vbd_iterations,
         }
     }
 
@@ -101,6 +141,8 @@ impl Integrator {
             Integrator::VelocityVerlet => "verlet",
             Integrator::RungeKutta4 => "rk4",
             Integrator::Xpbd => "xpbd",
+            Integrator::BackwardEuler => "backward-euler",
+            Integrator::Vbd => "vbd",
         }
     }
 }

@@ -64,6 +64,7 @@ pub mod reference;
 pub mod scene;
 pub mod self_collision;
 pub mod simulator;
+pub mod solver;
 pub mod springs;
 pub mod stability;
 pub mod tessellation;

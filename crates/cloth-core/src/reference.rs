@@ -7,6 +7,7 @@
 use rayon::prelude::*;
 
 use crate::colliders::Collider;
+use crate::coloring::{VERTEX_COLOR_COUNT, vertex_color};
 use crate::constraints::{contact_friction, project_spring, project_swept};
 use crate::effects::Effect;
 use crate::error::SimError;
@@ -14,6 +15,7 @@ use crate::forces::{
     add_spring_force, air_drag_force, contact_force, friction_force, friction_holds, gravity_force, grid_normal,
     integrate, stick, wind_force,
 };
+use crate::implicit::{ContactTerms, LinearisedStep, SpringTerms, conjugate_gradients};
 use crate::integrator::{Integrator, XPBD_ITERATIONS};
 use crate::model::ClothModel;
 use crate::motion::{MotionOf, wind_velocity};
@@ -25,6 +27,8 @@ use crate::self_collision::{
     repulsion_force, self_contact_correction,
 };
 use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
+use crate::solver::SolverIterations;
+use crate::vbd::{self, LocalTerms, chebyshev_weight};
 
 /// Vertices per rayon task: below this, splitting costs more than it saves.
 const PARALLEL_CHUNK: usize = 512;
@@ -200,7 +204,7 @@ pub struct ReferenceSimulator<R: Real> {
     /// Start of each vertex's spring list in `ends`.
     first: Vec<usize>,
     ends: Vec<End<R>>,
-    /// XPBD only (empty otherwise): every spring once, grouped by colour.
+    /// XPBD and backward Euler only (empty otherwise): every spring once, grouped by colour.
     constraints: Vec<Constraint<R>>,
     pinned: Vec<bool>,
     /// Each pinned vertex's group (its motion in `params.pin_motions`).
@@ -220,6 +224,11 @@ pub struct ReferenceSimulator<R: Real> {
     /// XPBD's averaged self-contact corrections.
     substep_start: Vec<Vec3<R>>,
     self_corrections: Vec<Vec3<R>>,
+    /// What the implicit solvers spent since creation.
+    solver_spent: SolverIterations,
+    /// VBD only: the velocities at the start of the previous substep (its adaptive
+    /// initialisation's acceleration).
+    vbd_last_velocities: Vec<Vec3<R>>,
 }
 
 /// The `f32` reference: the oracle GPU results are compared with.
@@ -234,7 +243,7 @@ impl<R: Real> ReferenceSimulator<R> {
         let v0 = Vec3::from_f64(scene.cloth.initial_velocity);
         let positions: Vec<Vec3<R>> = model.grid.positions.iter().map(|p| Vec3::from_f64(*p)).collect();
         let velocities: Vec<Vec3<R>> = model.grid.pinned.iter().map(|&p| if p { Vec3::zero() } else { v0 }).collect();
-        Self {
+        let mut simulator = Self {
             params: Params::new(&scene),
             first: model.adjacency.first.iter().map(|&f| f as usize).collect(),
             ends: model
@@ -243,7 +252,7 @@ impl<R: Real> ReferenceSimulator<R> {
                 .iter()
                 .map(|e| End { other: e.other as usize, kind: e.kind as usize, rest_length: R::of(e.rest_length) })
                 .collect(),
-            constraints: if scene.integrator == Integrator::Xpbd {
+            constraints: if matches!(scene.integrator, Integrator::Xpbd | Integrator::BackwardEuler) {
                 model
                     .spring_colors()
                     .order
@@ -273,8 +282,20 @@ impl<R: Real> ReferenceSimulator<R> {
             substeps_run: 0,
             substep_start: Vec::new(),
             self_corrections: Vec::new(),
+            solver_spent: SolverIterations::default(),
+            vbd_last_velocities: Vec::new(),
             scene,
-        }
+        };
+        simulator.assume_free_fall();
+        simulator
+    }
+
+    /// VBD's adaptive initialisation takes a state with no previous substep as in free fall: the
+    /// velocities a substep of gravity before `v` (so a falling cloth starts from the full
+    /// inertial prediction).
+    fn assume_free_fall(&mut self) {
+        let hg = self.params.gravity * self.params.dt;
+        self.vbd_last_velocities = self.velocities.iter().map(|&v| v - hg).collect();
     }
 
     fn moving_pins(&self) -> bool {
@@ -320,6 +341,8 @@ impl<R: Real> ReferenceSimulator<R> {
             Integrator::VelocityVerlet => self.verlet_substep(),
             Integrator::RungeKutta4 => self.rk4_substep(),
             Integrator::Xpbd => self.xpbd_substep(),
+            Integrator::BackwardEuler => self.backward_euler_substep(),
+            Integrator::Vbd => self.vbd_substep(),
         }
         if let Some(s) = self.params.self_collision.as_ref().filter(|_| limited) {
             let (max_speed, dt, start) = (s.max_speed, self.params.dt, &self.substep_start);
@@ -617,6 +640,213 @@ impl<R: Real> ReferenceSimulator<R> {
         }
     }
 
+    /// Backward Euler (see [`Integrator::BackwardEuler`] and [`crate::implicit`]): Newton
+    /// iterations on `M (v' − v) = h f(x + h v', v')`. Iteration `k` linearises the forces about
+    /// the state `(x̄, v̄)` (the substep's start first, Baraff and Witkin's step; then
+    /// `(x + h v̄, v̄)`, at the substep's end time) and solves
+    ///
+    /// ```text
+    /// (M + h C + h² K) Δ = h f(x̄, v̄) − h (K d_x + C d_v) − M (v̄ − v),   v̄ ← v̄ + Δ
+    /// ```
+    ///
+    /// with `d_x = x + h v̄ − x̄` and `d_v = 0` on the free vertices (`h v` in the first iteration,
+    /// zero after), and the pins' prescribed change on the pinned ones. `f` is the model's whole
+    /// force ([`variant_force_and_stick`]); `K` and `C` hold the springs' blocks and the contacts'
+    /// (the linearised part), while drag, wind, friction and self-collision enter through `f` at
+    /// the iterate only.
+    fn backward_euler_substep(&mut self) {
+        let p = &self.params;
+        let (h, m, n) = (p.dt, p.mass, self.positions.len());
+        let (t, t1) = (self.clock, self.clock + h);
+        let solver = self.scene.solver;
+        let (x0, v0) = (self.positions.clone(), self.velocities.clone());
+        let (mut x_end, mut v_end) = (x0.clone(), v0.clone());
+        self.move_pins(&mut x_end, &mut v_end, t, t1);
+        let (mut x_bar, mut v_bar, mut time) = (x0.clone(), v0.clone(), t);
+        let (mut dx, mut dv, mut drop) = (vec![Vec3::zero(); n], vec![Vec3::zero(); n], vec![Vec3::zero(); n]);
+        for _ in 0..solver.newton_iterations {
+            let f = self.forces(&x_bar, &v_bar, time, h);
+            let system = self.linearised_system(&x_bar, &v_bar, time);
+            for i in 0..n {
+                (dx[i], dv[i]) = if self.pinned[i] {
+                    (x_end[i] - x_bar[i], v_end[i] - v_bar[i])
+                } else {
+                    (x0[i] + v_bar[i] * h - x_bar[i], Vec3::zero())
+                };
+            }
+            system.force_drop(&dx, &dv, &mut drop);
+            let b: Vec<Vec3<R>> = (0..n).map(|i| (f[i] - drop[i]) * h - (v_bar[i] - v0[i]) * m).collect();
+            let mut change = vec![Vec3::zero(); n];
+            let report = conjugate_gradients(
+                &system,
+                &system.block_jacobi(),
+                &b,
+                &mut change,
+                R::of(solver.cg_tolerance),
+                solver.cg_max_iterations,
+            );
+            self.solver_spent.add_solve(report.iterations);
+            for i in 0..n {
+                (x_bar[i], v_bar[i]) = if self.pinned[i] {
+                    (x_end[i], v_end[i])
+                } else {
+                    let v = v_bar[i] + change[i];
+                    (x0[i] + v * h, v)
+                };
+            }
+            time = t1;
+        }
+        self.positions = x_bar;
+        self.velocities = v_bar;
+        self.clock = t1;
+    }
+
+    /// The linearised system of a backward-Euler iteration about `(x, v)` at time `time`: every
+    /// spring's blocks (the damping ones with `SpringDamping`) and the blocks of each free
+    /// vertex's contacts.
+    fn linearised_system(&self, x: &[Vec3<R>], v: &[Vec3<R>], time: R) -> LinearisedStep<R> {
+        let p = &self.params;
+        let damped = self.scene.effects.contains(Effect::SpringDamping);
+        let springs = self
+            .constraints
+            .iter()
+            .map(|s| {
+                let c = if damped { p.damping[s.kind] } else { R::zero() };
+                SpringTerms::new(s.a, s.b, x[s.a], x[s.b], s.rest_length, p.stiffness[s.kind], c)
+            })
+            .collect();
+        let moving = self.moving_colliders();
+        let mut contacts = Vec::new();
+        for c in &p.colliders {
+            let (center, velocity) = c.at(time, moving);
+            for i in (0..x.len()).filter(|&i| !self.pinned[i]) {
+                if c.distance(center, x[i]) < R::zero() {
+                    let surface = c.surface(center, x[i]);
+                    contacts.push(ContactTerms {
+                        vertex: i,
+                        stiffness: crate::forces::contact_stiffness_block(surface, c.stiffness),
+                        damping: crate::forces::contact_damping_block(v[i] - velocity, surface, c.damping),
+                    });
+                }
+            }
+        }
+        LinearisedStep {
+            step: p.dt,
+            masses: vec![p.mass; x.len()],
+            free: self.pinned.iter().map(|&pinned| !pinned).collect(),
+            springs,
+            contacts,
+        }
+    }
+
+    /// Vertex Block Descent (see [`Integrator::Vbd`] and [`crate::vbd`]): the inertial prediction
+    /// `y = x + h v + h² F_ext/m` (gravity, drag and wind as XPBD predicts them, plus
+    /// self-collision's repulsion at the substep's start), then the solver's sweeps, colour by
+    /// colour, of every free vertex's Newton step on its [`LocalTerms`] (inertia, springs with
+    /// their damping, the colliders where they end the substep, with friction), each optionally
+    /// extrapolated by Chebyshev's weight; finally `v = (x − x⁰)/h`.
+    fn vbd_substep(&mut self) {
+        let p = &self.params;
+        let (h, m) = (p.dt, p.mass);
+        let (t, t1) = (self.clock, self.clock + h);
+        let solver = self.scene.solver;
+        let moving_pins = self.moving_pins();
+        let x0 = self.positions.clone();
+        let ctx = self.context(&x0, &self.velocities, t);
+        let self_push = h * h / m;
+        let y: Vec<Vec3<R>> = (0..x0.len())
+            .into_par_iter()
+            .with_min_len(PARALLEL_CHUNK)
+            .map(|i| {
+                if self.pinned[i] {
+                    return p.pin_move(self.pin_group[i], x0[i], t, t1, moving_pins).0;
+                }
+                let mut y = x0[i] + ctx.predicted_velocity(i) * h;
+                if let (Some(hash), Some(s)) = (&ctx.hash, &p.self_collision) {
+                    y += ctx.self_collision_force(hash, s, i, h) * self_push;
+                }
+                y
+            })
+            .collect();
+        let colliders: Vec<(Vec3<R>, Vec3<R>)> =
+            p.colliders.iter().map(|c| c.at(t1, self.moving_colliders())).collect();
+        let friction = self.scene.effects.contains(Effect::Friction);
+        let damped = self.scene.effects.contains(Effect::SpringDamping);
+        let (nx, first, ends, pinned) = (p.nx, &self.first, &self.ends, &self.pinned);
+        let local_step = |x: &[Vec3<R>], i: usize| {
+            let mut terms = LocalTerms::inertia(x[i], y[i], m, h);
+            for end in &ends[first[i]..first[i + 1]] {
+                let j = end.other;
+                let c = if damped { p.damping[end.kind] } else { R::zero() };
+                terms.add_spring((x[i], x0[i]), (x[j], x0[j]), end.rest_length, p.stiffness[end.kind], c, h);
+            }
+            for (c, &(center, velocity)) in p.colliders.iter().zip(&colliders) {
+                if c.distance(center, x[i]) < R::zero() {
+                    let mu = if friction { c.friction } else { R::zero() };
+                    let surface = c.surface(center, x[i]);
+                    terms.add_contact((x[i], x0[i]), surface, velocity, c.stiffness, c.damping, mu, h);
+                }
+            }
+            terms.step(x[i])
+        };
+        // The vertices of each colour (free ones only).
+        let colours: Vec<Vec<usize>> = (0..VERTEX_COLOR_COUNT)
+            .map(|colour| {
+                (0..x0.len())
+                    .filter(|&i| !pinned[i] && vertex_color((i % nx) as u32, (i / nx) as u32) == colour)
+                    .collect()
+            })
+            .collect();
+        // The initial guess: the adaptive initialisation of Chen et al., the inertial step plus the
+        // part of gravity the vertex's last substep actually showed.
+        let gravity = p.gravity;
+        let mut x: Vec<Vec3<R>> = (0..x0.len())
+            .map(|i| {
+                if pinned[i] {
+                    y[i]
+                } else {
+                    let acceleration = (self.velocities[i] - self.vbd_last_velocities[i]) * (R::one() / h);
+                    x0[i] + self.velocities[i] * h + gravity * (vbd::gravity_share(acceleration, gravity) * h * h)
+                }
+            })
+            .collect();
+        // Chebyshev's history: each vertex's iterate one and two sweeps back.
+        let (mut previous, mut before) = (x.clone(), x.clone());
+        let rho = R::of(solver.chebyshev_rho);
+        let mut moved = Vec::new();
+        for sweep in 1..=solver.vbd_iterations {
+            let omega = chebyshev_weight(sweep, rho);
+            for vertices in &colours {
+                // A colour's vertices share no spring: each step reads only other colours' positions.
+                (vertices.par_iter().with_min_len(PARALLEL_CHUNK).map(|&i| local_step(&x, i)))
+                    .collect_into_vec(&mut moved);
+                for (&i, &xi) in vertices.iter().zip(&moved) {
+                    if rho > R::zero() {
+                        x[i] = before[i] + (xi - before[i]) * omega;
+                        before[i] = previous[i];
+                        previous[i] = x[i];
+                    } else {
+                        x[i] = xi;
+                    }
+                }
+            }
+        }
+        self.solver_spent.vbd += u64::from(solver.vbd_iterations);
+        self.vbd_last_velocities.clone_from(&self.velocities);
+        let inv_h = R::one() / h;
+        self.velocities = (0..x.len())
+            .map(|i| {
+                if pinned[i] {
+                    p.pin_velocity(self.pin_group[i], x[i], t1, moving_pins)
+                } else {
+                    (x[i] - x0[i]) * inv_h
+                }
+            })
+            .collect();
+        self.positions = x;
+        self.clock = t1;
+    }
+
     /// The model's semi-implicit Euler: every vertex from the previous state (Jacobi sweep).
     fn euler_substep(&mut self) {
         let (t, t1) = (self.clock, self.clock + self.params.dt);
@@ -886,6 +1116,7 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
         self.velocities = state.velocities.iter().map(|v| Vec3::from_f32(*v)).collect();
         self.time_s = state.time_s;
         self.clock = R::of(state.time_s as f32 as f64);
+        self.assume_free_fall();
         Ok(())
     }
 
@@ -894,6 +1125,10 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
             max_penetration_m: self.max_penetration.to_f64_lossy(),
             substeps_run: self.substeps_run,
             candidate_lists: None,
+            solver: self.scene.integrator.is_implicit().then_some(SolverIterations {
+                substeps: self.substeps_run,
+                ..self.solver_spent
+            }),
         })
     }
 }

@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::colliders::ColliderSpec;
 use crate::effects::EffectSet;
 use crate::self_collision::SelfCollisionSpec;
+use crate::solver::SolverSpec;
 
 /// A complete simulation set-up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -49,13 +50,16 @@ pub struct Scene {
     /// Time stepping: frame length, substeps per frame, run length.
     pub time: TimeSpec,
     /// Time integrator. Default `SemiImplicitEuler` (the model's); `VelocityVerlet`,
-    /// `RungeKutta4` and `Xpbd` run on every backend too (see [`crate::integrator`]).
+    /// `RungeKutta4`, `Xpbd`, `BackwardEuler` and `Vbd` run on every backend too (see [`crate::integrator`]).
     pub integrator: crate::integrator::Integrator,
     /// The effects this scene simulates. Default: the mass-spring model's (everything but air drag and the driven effects).
     pub effects: EffectSet,
     /// The parameters of the `SelfCollision` effect (see [`crate::self_collision`]). Default:
     /// [`SelfCollisionSpec::default`].
     pub self_collision: SelfCollisionSpec,
+    /// The implicit integrators' solver settings (see [`crate::solver`]). Default:
+    /// [`SolverSpec::default`].
+    pub solver: SolverSpec,
 }
 
 impl Default for Scene {
@@ -73,6 +77,7 @@ impl Default for Scene {
             integrator: crate::integrator::Integrator::default(),
             effects: EffectSet::default(),
             self_collision: SelfCollisionSpec::default(),
+            solver: SolverSpec::default(),
         }
     }
 }
@@ -97,6 +102,7 @@ struct SceneFile {
     integrator: crate::integrator::Integrator,
     effects: EffectSet,
     self_collision: SelfCollisionSpec,
+    solver: SolverSpec,
 }
 
 /// A field that is present (RON writes a list, not `Some(list)`).
@@ -121,6 +127,7 @@ impl Default for SceneFile {
             integrator: s.integrator,
             effects: s.effects,
             self_collision: s.self_collision,
+            solver: s.solver,
         }
     }
 }
@@ -146,6 +153,7 @@ impl From<SceneFile> for Scene {
             integrator: f.integrator,
             effects: f.effects,
             self_collision: f.self_collision,
+            solver: f.solver,
         }
     }
 }

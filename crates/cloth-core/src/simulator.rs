@@ -49,6 +49,8 @@ pub struct Diagnostics {
     /// With `SelfCollision` on a GPU backend, how its candidate lists fared since creation
     /// (the CPU reference keeps none).
     pub candidate_lists: Option<crate::self_collision::CandidateListStats>,
+    /// With an implicit integrator, what its solver spent since creation.
+    pub solver: Option<crate::solver::SolverIterations>,
 }
 
 /// What the last [`Simulator::advance`] cost in host–device traffic (all zero on the CPU).

@@ -114,13 +114,15 @@ pub const XPBD_AUTO_OMEGA_DT: f64 = 10.0;
 /// stayed below 5.8 J, what the ball can give).
 pub const XPBD_AUTO_COLLIDER_CELLS: f64 = 0.1;
 
-/// The substep `Substeps::Auto` aims below, s: `Auto::SAFETY × h_max` for the force-based
-/// integrators; for XPBD, `XPBD_AUTO_OMEGA_DT / ω_max` (`ω_max` of the springs alone: its
-/// colliders are constraints, not penalty springs) and, with moving colliders, the step in which
-/// the fastest moves [`XPBD_AUTO_COLLIDER_CELLS`] of a cell.
+/// The substep `Substeps::Auto` aims below, s: `Auto::SAFETY × h_max` for the explicit
+/// integrators; for those without a stability limit (XPBD, backward Euler, VBD), which `Auto`
+/// steps for accuracy instead, `XPBD_AUTO_OMEGA_DT / ω_max` (`ω_max` of the springs alone: XPBD's
+/// colliders are constraints, and the implicit integrators solve their penalty springs with the
+/// rest) and, with moving colliders, the step in which the fastest moves
+/// [`XPBD_AUTO_COLLIDER_CELLS`] of a cell.
 pub fn auto_target_substep(scene: &Scene) -> f64 {
-    if scene.integrator == crate::integrator::Integrator::Xpbd {
-        // Only the springs: XPBD's colliders are constraints, not penalty springs.
+    if scene.integrator.unconditionally_stable() {
+        // Only the springs: the colliders are constraints or solved implicitly.
         let mut springs_only = scene.clone();
         springs_only.effects.set(Effect::Contact, false);
         let (omega_sq, _) = stiffness_and_damping_rates(&springs_only);

@@ -272,6 +272,40 @@ impl Checker {
         }
     }
 
+    /// The `solver` field, for the integrator that reads it.
+    fn solver(&mut self, s: &crate::solver::SolverSpec, integrator: crate::Integrator) {
+        use crate::solver::{MAX_NEWTON_ITERATIONS, MAX_SOLVER_ITERATIONS};
+        let mut count = |field: &str, n: u32, max: u32| {
+            if n == 0 || n > max {
+                self.fail(
+                    format!("solver.{field}"),
+                    format!("is {n}; {} needs 1 to {max}", integrator.name()),
+                    format!("give a count from 1 to {max}"),
+                );
+            }
+        };
+        if integrator == crate::Integrator::BackwardEuler {
+            count("newton_iterations", s.newton_iterations, MAX_NEWTON_ITERATIONS);
+            count("cg_max_iterations", s.cg_max_iterations, MAX_SOLVER_ITERATIONS);
+            if self.finite("solver.cg_tolerance", s.cg_tolerance) && !(0.0..1.0).contains(&s.cg_tolerance) {
+                self.fail(
+                    "solver.cg_tolerance",
+                    format!("is {}, a relative residual must be in [0, 1)", s.cg_tolerance),
+                    "give e.g. 1e-4, or 0 to run cg_max_iterations every solve",
+                );
+            }
+        } else {
+            count("vbd_iterations", s.vbd_iterations, MAX_SOLVER_ITERATIONS);
+            if self.finite("solver.chebyshev_rho", s.chebyshev_rho) && !(0.0..1.0).contains(&s.chebyshev_rho) {
+                self.fail(
+                    "solver.chebyshev_rho",
+                    format!("is {}, a convergence rate must be in [0, 1)", s.chebyshev_rho),
+                    "give the sweeps' measured rate (e.g. 0.65), or 0 to turn Chebyshev acceleration off",
+                );
+            }
+        }
+    }
+
     fn spring(&mut self, field: &str, s: &SpringSpec) {
         self.non_negative(&format!("{field}.stiffness"), s.stiffness, "N/m");
         self.non_negative(&format!("{field}.damping"), s.damping, "N·s/m");
@@ -427,6 +461,9 @@ impl Scene {
         }
         if self.effects.contains(Effect::SelfCollision) {
             c.self_collision(self);
+        }
+        if self.integrator.is_implicit() {
+            c.solver(&self.solver, self.integrator);
         }
         if c.more > 0 {
             let message = format!("{} more problem(s) not listed", c.more);

@@ -21,13 +21,18 @@
 //! sweep takes the colours of [`crate::coloring::vertex_color`] in turn (Gauss–Seidel across
 //! colours, every vertex of a colour together: [`sweep`]). After the sweeps, `v = (x − x⁰)/h`.
 //!
-//! **Chebyshev acceleration** (optional) extrapolates each sweep's result from the iterate two
-//! sweeps back, `x_k ← ω_k (x̂_k − x_{k−2}) + x_{k−2}`, with `ω_1 = 1`, `ω_2 = 2/(2 − ρ²)` and
+//! **Chebyshev acceleration** (optional) extrapolates each vertex's new position from its own
+//! position two sweeps back, `x_k ← ω_k (x̂_k − x_{k−2}) + x_{k−2}`, right after its Newton step
+//! (so the next colours already see the extrapolated position, as in the paper), with `ω_1 = 1`, `ω_2 = 2/(2 − ρ²)` and
 //! `ω_k = 4/(4 − ρ² ω_{k−1})` for an estimate `ρ < 1` of the sweeps' convergence rate
 //! ([`chebyshev_weight`]).
 
+use crate::colliders::Surface;
 use crate::coloring::{VERTEX_COLOR_COUNT, vertex_color};
-use crate::forces::{add_spring_force, spring_stiffness_block};
+use crate::forces::{
+    add_spring_force, contact_damping_block, contact_force, contact_stiffness_block, spring_damping_block,
+    spring_stiffness_block,
+};
 use crate::model::Adjacency;
 use crate::real::{Mat3, Real, Vec3};
 
@@ -66,6 +71,121 @@ pub fn local_step<R: Real>(
         Some(inverse) => x - inverse.mul_vec(gradient),
         None => x,
     }
+}
+
+/// The slip speed below which VBD's friction holds a vertex like a stiff tangential spring, m/s
+/// (IPC's mollifier `ε_v`): a contact whose friction could hold the vertex lets it creep at most
+/// this fast.
+pub const FRICTION_SLIP_SPEED: f64 = 1e-3;
+
+/// Vertex `i`'s part of the incremental potential with everything a substep of the model puts in
+/// it, summed term by term: its gradient `g` (N) and Hessian `H` (N/m) at the vertex's current
+/// position `x`, with `v = (x − x⁰)/h` the velocity the substep gives it.
+///
+/// ```text
+/// inertia      g += m/h² (x − y)                      H += m/h² I
+/// spring s     g −= F_s(x, v)  (Hooke + damping)       H += K_s + C_s/h
+/// contact      g −= k_c d n − c min(v·n, 0) n          H += k_c n nᵀ + c/h n nᵀ (approaching)
+/// friction     g += μ F_n u / max(|u|, ε_u)           H += μ F_n / max(|u|, ε_u) (I − n nᵀ)
+/// ```
+///
+/// `u` is the contact's tangential displacement over the substep relative to the collider,
+/// `ε_u = ε_v h` with `ε_v` = [`FRICTION_SLIP_SPEED`], and `F_n` the contact's normal force at the
+/// current iterate (lagged, as IPC's friction): below `ε_u` the friction is a tangential spring of
+/// stiffness `μ F_n / ε_u`, beyond it a Coulomb force of magnitude `μ F_n` whose direction the
+/// Hessian's lagged `μ F_n / |u|` keeps positive semi-definite.
+#[derive(Clone, Copy, Debug)]
+pub struct LocalTerms<R> {
+    /// `g`, N.
+    pub gradient: Vec3<R>,
+    /// `H`, N/m.
+    pub hessian: Mat3<R>,
+}
+
+impl<R: Real> LocalTerms<R> {
+    /// The inertia of a vertex of mass `m` (kg) at `x` with inertial prediction `y` (m), step `h`.
+    pub fn inertia(x: Vec3<R>, y: Vec3<R>, m: R, h: R) -> Self {
+        let w = m / (h * h);
+        Self { gradient: (x - y) * w, hessian: Mat3::identity() * w }
+    }
+
+    /// A spring to vertex `j`: the vertex at `x` having started the substep at `x0`, `j` at `x_j`
+    /// from `x0_j` (m); rest length (m), stiffness (N/m), damping (N·s/m), step `h` (s).
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_spring(
+        &mut self,
+        (x, x0): (Vec3<R>, Vec3<R>),
+        (x_j, x0_j): (Vec3<R>, Vec3<R>),
+        rest_length: R,
+        stiffness: R,
+        damping: R,
+        h: R,
+    ) {
+        let inv_h = R::one() / h;
+        let mut force = Vec3::zero();
+        add_spring_force(&mut force, x, x_j, (x - x0) * inv_h, (x_j - x0_j) * inv_h, rest_length, stiffness, damping);
+        self.gradient -= force;
+        self.hessian = self.hessian + spring_stiffness_block(x, x_j, rest_length, stiffness);
+        if damping > R::zero() {
+            self.hessian = self.hessian + spring_damping_block(x, x_j, damping) * inv_h;
+        }
+    }
+
+    /// A collider whose surface seen from `x` is `surface`, moving at `collider_velocity` (m/s):
+    /// penalty stiffness (N/m), damping (N·s/m) and friction coefficient `μ` (0 without the
+    /// `Friction` effect). `x0` is where the vertex started the substep, `h` the step (s).
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_contact(
+        &mut self,
+        (x, x0): (Vec3<R>, Vec3<R>),
+        surface: Surface<R>,
+        collider_velocity: Vec3<R>,
+        stiffness: R,
+        damping: R,
+        friction: R,
+        h: R,
+    ) {
+        let inv_h = R::one() / h;
+        let v_rel = (x - x0) * inv_h - collider_velocity;
+        let Some(contact) = contact_force(v_rel, surface, stiffness, damping) else { return };
+        let n = contact.normal;
+        self.gradient -= contact.force;
+        self.hessian = self.hessian
+            + contact_stiffness_block(surface, stiffness)
+            + contact_damping_block(v_rel, surface, damping) * inv_h;
+        let normal_force = contact.force.dot(n);
+        if friction <= R::zero() || normal_force <= R::zero() {
+            return;
+        }
+        let slip = v_rel * h;
+        let u = slip - n * slip.dot(n);
+        let reach = u.length().max(R::of(FRICTION_SLIP_SPEED) * h);
+        let scale = friction * normal_force / reach;
+        self.gradient += u * scale;
+        self.hessian = self.hessian + (Mat3::identity() - Mat3::outer(n, n)) * scale;
+    }
+
+    /// The Newton step's result `x − H⁻¹ g` (the vertex stays where it is if rounding made `H`
+    /// singular).
+    pub fn step(&self, x: Vec3<R>) -> Vec3<R> {
+        match self.hessian.inverse() {
+            Some(inverse) => x - inverse.mul_vec(self.gradient),
+            None => x,
+        }
+    }
+}
+
+/// The share of gravity `g` (m/s²) that VBD's adaptive initialisation adds to a vertex's inertial
+/// step (Chen et al. 2024): its last substep's acceleration `a` (m/s²) along `g`, as a fraction of
+/// `|g|` clamped to `[0, 1]`. A vertex in free fall starts from the full inertial prediction; one
+/// at rest on a support or hanging from its springs starts where it is, close to the solution, so
+/// that few sweeps do not have to carry the support's force across the whole cloth.
+pub fn gravity_share<R: Real>(acceleration: Vec3<R>, gravity: Vec3<R>) -> R {
+    let g2 = gravity.dot(gravity);
+    if g2 <= R::zero() {
+        return R::zero();
+    }
+    (acceleration.dot(gravity) / g2).max(R::zero()).min(R::one())
 }
 
 /// What a sweep needs besides the positions: the grid's width, each vertex's mass (kg), whether

@@ -287,6 +287,44 @@ gpu_struct! {
     }
 }
 
+gpu_struct! {
+    /// What a Vertex Block Descent colour pass needs of its sweep (16 bytes, stored every
+    /// [`COLOR_RANGE_STRIDE`] bytes of a uniform buffer and selected by a dynamic offset).
+    GpuVbdSweep as "VbdSweep" {
+        /// Chebyshev's weight `ω_k` of the sweep (1 in the first).
+        omega: f32,
+        /// 1 when Chebyshev acceleration is on (the solver's `chebyshev_rho` > 0).
+        chebyshev: u32,
+        /// Padding to 16 bytes.
+        pad0: u32,
+        /// Padding to 16 bytes.
+        pad1: u32,
+    }
+}
+
+impl GpuVbdSweep {
+    /// The blocks of every sweep of a substep, `COLOR_RANGE_STRIDE` bytes apart: sweep `k` (from
+    /// 1) at `(k − 1) COLOR_RANGE_STRIDE`, with its Chebyshev weight in `f32`, as the reference
+    /// computes it in `f32` (cloth_core::vbd::chebyshev_weight).
+    pub fn blocks(solver: &cloth_core::solver::SolverSpec) -> Vec<u8> {
+        let sweeps = solver.vbd_iterations.max(1) as usize;
+        let mut bytes = vec![0u8; sweeps * COLOR_RANGE_STRIDE as usize];
+        let chebyshev = solver.chebyshev_rho > 0.0;
+        for k in 0..sweeps {
+            let omega = cloth_core::vbd::chebyshev_weight(k as u32 + 1, solver.chebyshev_rho as f32);
+            let block = GpuVbdSweep { omega, chebyshev: u32::from(chebyshev), ..Default::default() };
+            let at = k * COLOR_RANGE_STRIDE as usize;
+            bytes[at..at + size_of::<Self>()].copy_from_slice(bytemuck::bytes_of(&block));
+        }
+        bytes
+    }
+
+    /// The dynamic offset of sweep `k` (from 1).
+    pub fn offset(k: u32) -> u32 {
+        ((k.max(1) - 1) as u64 * COLOR_RANGE_STRIDE) as u32
+    }
+}
+
 /// The layouts of every struct the shaders share with the host.
 pub fn struct_layouts() -> Vec<StructLayout> {
     vec![
@@ -295,6 +333,7 @@ pub fn struct_layouts() -> Vec<StructLayout> {
         GpuConstraint::layout(),
         GpuColorRange::layout(),
         GpuSelfControl::layout(),
+        GpuVbdSweep::layout(),
     ]
 }
 

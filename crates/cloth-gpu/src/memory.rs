@@ -42,6 +42,11 @@ impl MemoryEstimate {
             Integrator::Xpbd => {
                 (20 * springs + 4 * vertices + 2 * COLOR_COUNT as u128 * COLOR_RANGE_STRIDE as u128, 16 * springs)
             }
+            // The inertial predictions, the last substep's velocities, Chebyshev's history.
+            Integrator::Vbd => (4 * state, 2 * state),
+            // The start state, the iterate, Δv, and CG's r, z, p, A p, and the preconditioner's
+            // 3 × 3 blocks (three vec4 a vertex).
+            Integrator::BackwardEuler => (10 * state, 3 * state),
         };
         // The colliders' uniform block, and 4 bytes a distance-field sample of each mesh.
         let samples: u128 = (scene.colliders.iter())

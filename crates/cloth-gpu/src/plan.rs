@@ -4,13 +4,13 @@
 //! the dispatches the schedule gives.
 
 use cloth_core::colliders::ColliderKind;
-use cloth_core::coloring::COLOR_COUNT;
+use cloth_core::coloring::{COLOR_COUNT, VERTEX_COLOR_COUNT};
 use cloth_core::integrator::XPBD_ITERATIONS;
 use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
-    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams,
+    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, GpuVbdSweep,
     LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
@@ -77,6 +77,8 @@ pub enum Shader {
     Tiled(TileConfig),
     /// `xpbd`: XPBD's passes.
     Xpbd,
+    /// `vbd`: Vertex Block Descent's passes.
+    Vbd,
     /// `copy`: the copy kernel that measures the memory bandwidth ([`crate::bandwidth`]).
     Copy,
     /// `self_hash`: self-collision's check and the passes that rebuild its spatial hash and
@@ -107,6 +109,10 @@ pub enum Constant {
     Stage,
     /// XPBD's pass (0 predict, 1 a colour, 2 the colliders, 3 finish, 4 the self-contacts).
     XpbdPass,
+    /// VBD's pass (0 predict, 1 a colour's Newton steps, 2 finish).
+    VbdPass,
+    /// The vertex colour a VBD colour pass moves (0 to 4).
+    VbdColor,
     /// Vertices along `i` of a block, 0 for rows.
     BlockWidth,
     /// 1: the pipeline reads the packed state.
@@ -140,6 +146,8 @@ impl Constant {
             Constant::WorkgroupSize => ("WORKGROUP_SIZE", 100),
             Constant::Stage => ("STAGE", 101),
             Constant::XpbdPass => ("XPBD_PASS", 101),
+            Constant::VbdPass => ("VBD_PASS", 101),
+            Constant::VbdColor => ("VBD_COLOR", 112),
             Constant::TileWidth => ("TILE_WIDTH", 102),
             Constant::TileHeight => ("TILE_HEIGHT", 103),
             Constant::TileCells => ("TILE_CELLS", 104),
@@ -271,6 +279,9 @@ pub struct StateBuffers {
     pub indirect: Option<BufferId>,
     /// With `SelfCollision`, its [`GpuSelfControl`].
     pub self_control: Option<BufferId>,
+    /// With VBD, the velocities at the start of the last substep (its adaptive
+    /// initialisation's), which a state written from the host resets to a substep of free fall.
+    pub vbd_last_velocities: Option<BufferId>,
 }
 
 /// Everything a backend creates for a simulation, and the schedule of its frames.
@@ -338,6 +349,28 @@ const XPBD_BINDINGS: [Binding; 16] = [
     COLOR_RANGE,
     DISTANCE_FIELDS,
     WRITE,
+    SELF_COLLISION[0],
+    SELF_COLLISION[1],
+    SELF_COLLISION[2],
+];
+
+/// `vbd`'s bindings: parameters, colliders, positions and velocities in, positions and velocities
+/// out, the deepest penetration, the inertial predictions, the last substep's velocities,
+/// Chebyshev's history, the sweep (a block of the sweeps' buffer, chosen by a dynamic offset), the
+/// distance fields, then self-collision's buffers ([`SELF_COLLISION`]).
+const VBD_BINDINGS: [Binding; 15] = [
+    PARAMS,
+    COLLIDERS,
+    READ,
+    READ,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    Binding::Uniform { size: size_of::<GpuVbdSweep>() as u64, dynamic: true },
+    DISTANCE_FIELDS,
     SELF_COLLISION[0],
     SELF_COLLISION[1],
     SELF_COLLISION[2],
@@ -415,6 +448,13 @@ impl Plan {
             let allowed = format!("at most the {} invocations the device allows a workgroup", limits.max_invocations);
             return Err(invalid("GpuTuning::workgroup_size", tuning.workgroup_size, allowed));
         }
+        if scene.integrator == Integrator::BackwardEuler {
+            return Err(SimError::Unsupported {
+                backend,
+                what: format!("the {} integrator", scene.integrator.name()),
+                fix: "run it on the cpu or cpu-f64 backend".into(),
+            });
+        }
         crate::memory::check_fits(scene, limits.max_storage_binding, "storage buffer (the device's largest binding)")?;
         let model = ClothModel::new(scene);
         let v0 = scene.cloth.initial_velocity.map(|x| x as f32);
@@ -442,10 +482,12 @@ impl Plan {
             max_penetration: b.buffer("max penetration", storage, 4, None),
             indirect: None,
             self_control: None,
+            vbd_last_velocities: None,
         };
         b.plan.state = state;
         b.plan.schedule = match scene.integrator {
             Integrator::Xpbd => xpbd(&mut b, &model, limits),
+            Integrator::Vbd => vbd(&mut b, &velocities, limits),
             _ => force_based(&mut b, &positions, &velocities, limits)?,
         };
         let plan = b.plan;
@@ -824,6 +866,61 @@ fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule 
         }
     }
     substep.push(pass(3, vertices, 0));
+    let checks = self_collision.then(|| self_collision_checks(b, &self_buffers));
+    Schedule { substep, tiled: None, packed: None, self_collision: checks }
+}
+
+/// Vertex Block Descent (`vbd`): predict; per sweep one dispatch per vertex colour; finish. The
+/// last substep's velocities start as a substep of free fall before the initial ones (the
+/// reference's `assume_free_fall`).
+fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Schedule {
+    let (scene, storage) = (b.scene, BufferUsage::Storage);
+    let n = velocities.len() as u64;
+    let solver = scene.solver;
+    let q = cloth_core::SceneQuantities::of(scene);
+    let hg = q.gravity.map(|g| (g * q.substep_dt) as f32);
+    let last: Vec<[f32; 4]> = velocities.iter().map(|v| [v[0] - hg[0], v[1] - hg[1], v[2] - hg[2], 0.0]).collect();
+    let predicted = b.buffer("VBD inertial predictions", storage, 16 * n, None);
+    let last_velocities = b.filled("VBD last substep's velocities", storage, bytemuck::cast_slice(&last));
+    let chebyshev = solver.chebyshev_rho > 0.0;
+    let history = b.buffer("VBD Chebyshev history", storage, if chebyshev { 32 * n } else { 16 }, None);
+    let sweeps = b.filled("VBD sweeps", BufferUsage::Uniform, &GpuVbdSweep::blocks(&solver));
+    let self_collision = scene.effects.contains(Effect::SelfCollision);
+    let self_buffers = self_collision_buffers(b);
+    let kernel = b.kernel(Shader::Vbd, &VBD_BINDINGS);
+    let s = b.plan.state;
+    b.plan.state.vbd_last_velocities = Some(last_velocities);
+    let groups = [0, 1].map(|k| {
+        let (p, v) = (s.positions, s.velocities);
+        let buffers = [
+            vec![s.params, s.colliders, p[k], v[k], p[1 - k], v[1 - k], s.max_penetration],
+            vec![predicted, last_velocities, history, sweeps, s.distance_fields],
+            self_buffers.bound().to_vec(),
+        ]
+        .concat();
+        b.group(kernel, format!("VBD {} -> {}", NAME[k], NAME[1 - k]), buffers)
+    });
+    let predict = b.pipeline(kernel, "VBD predict", &[(Constant::VbdPass, 0), (Constant::VbdColor, 0)]);
+    let colors: Vec<PipelineId> = (0..VERTEX_COLOR_COUNT as u32)
+        .map(|c| {
+            let constants = [(Constant::VbdPass, 1), (Constant::VbdColor, c)];
+            b.pipeline(kernel, &format!("VBD colour {c}"), &constants)
+        })
+        .collect();
+    let finish = b.pipeline(kernel, "VBD finish", &[(Constant::VbdPass, 2), (Constant::VbdColor, 0)]);
+    let (threads, max) = (b.tuning.workgroup_size, limits.max_workgroups_per_dimension);
+    let vertices = spilled_workgroups(n as u32, threads, max);
+    let [nx, ny] = scene.cloth.resolution;
+    // A colour pass: one invocation for every fifth vertex of each row.
+    let per_color = spilled_workgroups(nx.div_ceil(VERTEX_COLOR_COUNT as u32) * ny, threads, max);
+    let pass = |pipeline, workgroups, offset| Pass { pipeline, groups, workgroups, dynamic_offset: Some(offset), indirect: None };
+    let mut substep = vec![pass(predict, vertices, 0)];
+    for sweep in 1..=solver.vbd_iterations {
+        for &pipeline in &colors {
+            substep.push(pass(pipeline, per_color, GpuVbdSweep::offset(sweep)));
+        }
+    }
+    substep.push(pass(finish, vertices, 0));
     let checks = self_collision.then(|| self_collision_checks(b, &self_buffers));
     Schedule { substep, tiled: None, packed: None, self_collision: checks }
 }

@@ -121,6 +121,20 @@ impl<B: GpuBackend> Drop for GpuSimulator<B> {
 }
 
 impl<B: GpuBackend> GpuSimulator<B> {
+    /// What an implicit integrator's solver spent since creation: VBD's sweeps are fixed by the
+    /// scene, so the host counts them.
+    fn solver_spent(&self) -> Option<cloth_core::solver::SolverIterations> {
+        let substeps = self.substeps_run;
+        match self.scene.integrator {
+            cloth_core::Integrator::Vbd => Some(cloth_core::solver::SolverIterations {
+                substeps,
+                vbd: substeps * u64::from(self.scene.solver.vbd_iterations),
+                ..Default::default()
+            }),
+            _ => None,
+        }
+    }
+
     /// Creates the simulator on its own device, as `tuning` asks.
     ///
     /// # Errors
@@ -288,6 +302,15 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
         let (p, v) = (&self.buffers[self.state.positions[k]], &self.buffers[self.state.velocities[k]]);
         self.backend.write(p, bytemuck::cast_slice(&positions))?;
         self.backend.write(v, bytemuck::cast_slice(&velocities))?;
+        if let Some(last) = self.state.vbd_last_velocities {
+            // VBD takes a state with no previous substep as in free fall (the reference's
+            // assume_free_fall).
+            let q = cloth_core::SceneQuantities::of(&self.scene);
+            let hg = q.gravity.map(|g| (g * q.substep_dt) as f32);
+            let before: Vec<[f32; 4]> =
+                state.velocities.iter().map(|v| [v[0] - hg[0], v[1] - hg[1], v[2] - hg[2], 0.0]).collect();
+            self.backend.write(&self.buffers[last], bytemuck::cast_slice(&before))?;
+        }
         self.time_s = state.time_s;
         self.hash_stale = true;
         Ok(())
@@ -310,6 +333,7 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
             max_penetration_m: f32::from_bits(bits) as f64,
             substeps_run: self.substeps_run,
             candidate_lists,
+            solver: self.solver_spent(),
         })
     }
 

@@ -27,7 +27,7 @@ use vulkano::sync::{GpuFuture, PipelineStage};
 
 use crate::context::VulkanContext;
 use crate::raw::FrameRecorder;
-use crate::{BACKEND_NAME, COPY_SPIRV, SELF_HASH_SPIRV, STEP_SPIRV, TILED_STEP_SPIRV, XPBD_SPIRV};
+use crate::{BACKEND_NAME, COPY_SPIRV, SELF_HASH_SPIRV, STEP_SPIRV, TILED_STEP_SPIRV, VBD_SPIRV, XPBD_SPIRV};
 
 /// The cloth simulated by GLSL compute shaders (SPIR-V) through vulkano.
 pub type VulkanoSimulator = cloth_gpu::GpuSimulator<VulkanoBackend>;
@@ -238,6 +238,7 @@ impl GpuBackend for VulkanoBackend {
             Shader::Step => STEP_SPIRV,
             Shader::Tiled(_) => TILED_STEP_SPIRV,
             Shader::Xpbd => XPBD_SPIRV,
+            Shader::Vbd => VBD_SPIRV,
             Shader::Copy => COPY_SPIRV,
             Shader::SelfHash => SELF_HASH_SPIRV,
         };

@@ -68,6 +68,17 @@ pub const XPBD_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/xpbd.wgsl")
 );
 
+/// WGSL source of the Vertex Block Descent passes: `layout.wgsl`, `colliders.wgsl`,
+/// `common.wgsl`, `self_collision.wgsl`, `self_partners.wgsl`, `vbd.wgsl`.
+pub const VBD_SHADER: &str = concat!(
+    include_str!("../../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../../shaders/wgsl/colliders.wgsl"),
+    include_str!("../../../shaders/wgsl/common.wgsl"),
+    include_str!("../../../shaders/wgsl/self_collision.wgsl"),
+    include_str!("../../../shaders/wgsl/self_partners.wgsl"),
+    include_str!("../../../shaders/wgsl/vbd.wgsl")
+);
+
 /// WGSL source of the copy kernel that measures the memory bandwidth (`copy.wgsl`).
 pub const COPY_SHADER: &str = include_str!("../../../shaders/wgsl/copy.wgsl");
 

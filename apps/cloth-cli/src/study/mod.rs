@@ -78,15 +78,7 @@ pub struct Study {
 }
 
 fn parse_integrators(names: &[String]) -> Result<Vec<Integrator>> {
-    names
-        .iter()
-        .map(|n| {
-            Integrator::from_name(n).with_context(|| {
-                let all: Vec<&str> = Integrator::ALL.iter().map(|i| i.name()).collect();
-                format!("unknown integrator '{n}': choose among {}", all.join(", "))
-            })
-        })
-        .collect()
+    names.iter().map(|n| crate::parse_integrator(n).map_err(anyhow::Error::msg)).collect()
 }
 
 fn progress_bar(len: u64, what: &str) -> ProgressBar {

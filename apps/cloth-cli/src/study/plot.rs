@@ -74,6 +74,8 @@ fn integrator_color(integrator: Integrator) -> RGBColor {
         Integrator::VelocityVerlet => RGBColor(40, 70, 215),
         Integrator::RungeKutta4 => RGBColor(0, 145, 0),
         Integrator::Xpbd => RGBColor(240, 135, 0),
+        Integrator::BackwardEuler => RGBColor(130, 40, 170),
+        Integrator::Vbd => RGBColor(0, 150, 160),
     }
 }
 
