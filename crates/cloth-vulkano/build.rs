@@ -15,7 +15,7 @@ fn main() {
         println!("cargo:rerun-if-changed={}", path.display());
     }
     println!("cargo:rerun-if-env-changed=GLSLC");
-    for kernel in ["cloth_step", "cloth_step_tiled", "xpbd", "vbd", "self_hash", "copy"] {
+    for kernel in ["cloth_step", "cloth_step_tiled", "xpbd", "vbd", "implicit", "self_hash", "copy"] {
         let status = Command::new(&glslc)
             // No -O: the driver optimises the SPIR-V anyway, and the unoptimised module keeps the
             // struct and constant names the layout test reflects on.

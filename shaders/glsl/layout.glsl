@@ -27,6 +27,18 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 self_lists;    // the margin less its rounding share, m; lookahead, m; substeps between checks
 } params;
 
+// cloth_gpu::layout::GpuCgCounters (32 bytes): backward Euler's conjugate gradients' counters.
+struct CgCounters {
+    uint newton;            // Newton iterations run
+    uint cg;                // CG iterations run
+    uint cg_most;           // the most CG iterations of one solve
+    uint solve_iterations;  // the current solve's iterations so far
+    float b_norm;           // the current solve's |b|, N·s
+    float tolerance;        // the relative tolerance
+    uint pad0;
+    uint pad1;
+};
+
 // cloth_gpu::layout::GpuSelfControl (2096 bytes, std430): self-collision's check and the
 // substeps share it.
 struct SelfControl {

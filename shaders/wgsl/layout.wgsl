@@ -80,6 +80,26 @@ struct VbdSweep {
     pad1: u32,
 }
 
+// cloth_gpu::layout::GpuCgCounters (32 bytes): backward Euler's conjugate gradients' counters.
+struct CgCounters {
+    newton: u32,             // Newton iterations run
+    cg: u32,                 // CG iterations run
+    cg_most: u32,            // the most CG iterations of one solve
+    solve_iterations: u32,   // the current solve's iterations so far
+    b_norm: f32,             // the current solve's |b|, N·s
+    tolerance: f32,          // the relative tolerance
+    pad0: u32,
+    pad1: u32,
+}
+
+// cloth_gpu::layout::GpuCgStep (16 bytes): the CG iteration a pass belongs to.
+struct CgStep {
+    iteration: u32,          // from 1
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
 // cloth_gpu::layout::GpuSelfControl (2096 bytes): self-collision's check and the substeps share
 // it.
 struct SelfControl {

@@ -1125,10 +1125,11 @@ impl<R: Real> Simulator for ReferenceSimulator<R> {
             max_penetration_m: self.max_penetration.to_f64_lossy(),
             substeps_run: self.substeps_run,
             candidate_lists: None,
-            solver: self.scene.integrator.is_implicit().then_some(SolverIterations {
-                substeps: self.substeps_run,
-                ..self.solver_spent
-            }),
+            solver: self
+                .scene
+                .integrator
+                .is_implicit()
+                .then_some(SolverIterations { substeps: self.substeps_run, ..self.solver_spent }),
         })
     }
 }

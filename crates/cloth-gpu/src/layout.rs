@@ -325,6 +325,63 @@ impl GpuVbdSweep {
     }
 }
 
+gpu_struct! {
+    /// Backward Euler's conjugate gradients: what one solve keeps between its passes and what the
+    /// solver has spent since creation (32 bytes, one storage buffer).
+    GpuCgCounters as "CgCounters" {
+        /// Newton iterations run (one solve each).
+        newton: u32,
+        /// Conjugate-gradient iterations run, over every solve.
+        cg: u32,
+        /// The most conjugate-gradient iterations one solve took.
+        cg_most: u32,
+        /// The current solve's iterations so far.
+        solve_iterations: u32,
+        /// The current solve's `|b|`, N·s.
+        b_norm: f32,
+        /// The solver's relative tolerance (`solver.cg_tolerance`).
+        tolerance: f32,
+        /// Padding to 32 bytes.
+        pad0: u32,
+        /// Padding to 32 bytes.
+        pad1: u32,
+    }
+}
+
+gpu_struct! {
+    /// Which conjugate-gradient iteration a pass belongs to (16 bytes, stored every
+    /// [`COLOR_RANGE_STRIDE`] bytes of a uniform buffer and selected by a dynamic offset).
+    GpuCgStep as "CgStep" {
+        /// The iteration, from 1.
+        iteration: u32,
+        /// Padding to 16 bytes.
+        pad0: u32,
+        /// Padding to 16 bytes.
+        pad1: u32,
+        /// Padding to 16 bytes.
+        pad2: u32,
+    }
+}
+
+impl GpuCgStep {
+    /// The blocks of iterations 1 to `iterations`, `COLOR_RANGE_STRIDE` bytes apart.
+    pub fn blocks(iterations: u32) -> Vec<u8> {
+        let n = iterations.max(1) as usize;
+        let mut bytes = vec![0u8; n * COLOR_RANGE_STRIDE as usize];
+        for k in 0..n {
+            let at = k * COLOR_RANGE_STRIDE as usize;
+            let block = GpuCgStep { iteration: k as u32 + 1, ..Default::default() };
+            bytes[at..at + size_of::<Self>()].copy_from_slice(bytemuck::bytes_of(&block));
+        }
+        bytes
+    }
+
+    /// The dynamic offset of iteration `k` (from 1).
+    pub fn offset(k: u32) -> u32 {
+        ((k.max(1) - 1) as u64 * COLOR_RANGE_STRIDE) as u32
+    }
+}
+
 /// The layouts of every struct the shaders share with the host.
 pub fn struct_layouts() -> Vec<StructLayout> {
     vec![
@@ -334,6 +391,8 @@ pub fn struct_layouts() -> Vec<StructLayout> {
         GpuColorRange::layout(),
         GpuSelfControl::layout(),
         GpuVbdSweep::layout(),
+        GpuCgCounters::layout(),
+        GpuCgStep::layout(),
     ]
 }
 

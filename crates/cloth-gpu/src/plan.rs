@@ -10,8 +10,8 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
-    COLOR_RANGE_STRIDE, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl, GpuSimParams, GpuVbdSweep,
-    LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
+    COLOR_RANGE_STRIDE, GpuCgCounters, GpuCgStep, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl,
+    GpuSimParams, GpuVbdSweep, LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
 use crate::tuning::{CandidateListing, GpuTuning, invalid};
@@ -79,6 +79,8 @@ pub enum Shader {
     Xpbd,
     /// `vbd`: Vertex Block Descent's passes.
     Vbd,
+    /// `implicit`: backward Euler's passes (Newton iterations of conjugate gradients).
+    Implicit,
     /// `copy`: the copy kernel that measures the memory bandwidth ([`crate::bandwidth`]).
     Copy,
     /// `self_hash`: self-collision's check and the passes that rebuild its spatial hash and
@@ -113,6 +115,8 @@ pub enum Constant {
     VbdPass,
     /// The vertex colour a VBD colour pass moves (0 to 4).
     VbdColor,
+    /// Backward Euler's pass (`implicit.wgsl` lists them, 0 to 8).
+    ImplicitPass,
     /// Vertices along `i` of a block, 0 for rows.
     BlockWidth,
     /// 1: the pipeline reads the packed state.
@@ -148,6 +152,7 @@ impl Constant {
             Constant::XpbdPass => ("XPBD_PASS", 101),
             Constant::VbdPass => ("VBD_PASS", 101),
             Constant::VbdColor => ("VBD_COLOR", 112),
+            Constant::ImplicitPass => ("IMPLICIT_PASS", 101),
             Constant::TileWidth => ("TILE_WIDTH", 102),
             Constant::TileHeight => ("TILE_HEIGHT", 103),
             Constant::TileCells => ("TILE_CELLS", 104),
@@ -282,6 +287,8 @@ pub struct StateBuffers {
     /// With VBD, the velocities at the start of the last substep (its adaptive
     /// initialisation's), which a state written from the host resets to a substep of free fall.
     pub vbd_last_velocities: Option<BufferId>,
+    /// With backward Euler, its conjugate gradients' [`GpuCgCounters`] (what the solver spent).
+    pub cg_counters: Option<BufferId>,
 }
 
 /// Everything a backend creates for a simulation, and the schedule of its frames.
@@ -376,6 +383,31 @@ const VBD_BINDINGS: [Binding; 15] = [
     SELF_COLLISION[2],
 ];
 
+/// `implicit`'s bindings: parameters, colliders, positions and velocities in, the iterate (and
+/// then the new state) out, the deepest penetration, CG's vectors, the vertices' blocks, the
+/// partial sums, the counters, the iterations' steps, the iteration (a block of the iterations'
+/// buffer, chosen by a dynamic offset), the distance fields, then self-collision's buffers
+/// ([`SELF_COLLISION`]).
+const IMPLICIT_BINDINGS: [Binding; 17] = [
+    PARAMS,
+    COLLIDERS,
+    READ,
+    READ,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    WRITE,
+    Binding::Uniform { size: size_of::<GpuCgStep>() as u64, dynamic: true },
+    DISTANCE_FIELDS,
+    SELF_COLLISION[0],
+    SELF_COLLISION[1],
+    SELF_COLLISION[2],
+];
+
 const NAME: [&str; 2] = ["A", "B"];
 
 /// Collects the plan's objects.
@@ -448,13 +480,6 @@ impl Plan {
             let allowed = format!("at most the {} invocations the device allows a workgroup", limits.max_invocations);
             return Err(invalid("GpuTuning::workgroup_size", tuning.workgroup_size, allowed));
         }
-        if scene.integrator == Integrator::BackwardEuler {
-            return Err(SimError::Unsupported {
-                backend,
-                what: format!("the {} integrator", scene.integrator.name()),
-                fix: "run it on the cpu or cpu-f64 backend".into(),
-            });
-        }
         crate::memory::check_fits(scene, limits.max_storage_binding, "storage buffer (the device's largest binding)")?;
         let model = ClothModel::new(scene);
         let v0 = scene.cloth.initial_velocity.map(|x| x as f32);
@@ -483,11 +508,13 @@ impl Plan {
             indirect: None,
             self_control: None,
             vbd_last_velocities: None,
+            cg_counters: None,
         };
         b.plan.state = state;
         b.plan.schedule = match scene.integrator {
             Integrator::Xpbd => xpbd(&mut b, &model, limits),
             Integrator::Vbd => vbd(&mut b, &velocities, limits),
+            Integrator::BackwardEuler => backward_euler(&mut b, limits),
             _ => force_based(&mut b, &positions, &velocities, limits)?,
         };
         let plan = b.plan;
@@ -913,7 +940,13 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
     let [nx, ny] = scene.cloth.resolution;
     // A colour pass: one invocation for every fifth vertex of each row.
     let per_color = spilled_workgroups(nx.div_ceil(VERTEX_COLOR_COUNT as u32) * ny, threads, max);
-    let pass = |pipeline, workgroups, offset| Pass { pipeline, groups, workgroups, dynamic_offset: Some(offset), indirect: None };
+    let pass = |pipeline, workgroups, offset| Pass {
+        pipeline,
+        groups,
+        workgroups,
+        dynamic_offset: Some(offset),
+        indirect: None,
+    };
     let mut substep = vec![pass(predict, vertices, 0)];
     for sweep in 1..=solver.vbd_iterations {
         for &pipeline in &colors {
@@ -921,6 +954,79 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
         }
     }
     substep.push(pass(finish, vertices, 0));
+    let checks = self_collision.then(|| self_collision_checks(b, &self_buffers));
+    Schedule { substep, tiled: None, packed: None, self_collision: checks }
+}
+
+/// Backward Euler (`implicit`): start; per Newton iteration a linearisation, per CG iteration its
+/// three passes (the product with A, the update, the new direction), the Newton update; finish.
+/// Every iteration's dispatches are recorded (a solve that is done skips their work): the frame
+/// stays one submission with no host round trip.
+fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
+    let (scene, storage) = (b.scene, BufferUsage::Storage);
+    let n = scene.vertex_count() as u64;
+    let solver = scene.solver;
+    let (threads, max) = (b.tuning.workgroup_size, limits.max_workgroups_per_dimension);
+    let vertices = spilled_workgroups(n as u32, threads, max);
+    let partial_count = n.div_ceil(u64::from(threads));
+    let cg = b.buffer("backward Euler CG vectors", storage, 64 * n, None);
+    let blocks = b.buffer("backward Euler blocks", storage, 80 * n, None);
+    let partials = b.buffer("backward Euler partial sums", storage, 3 * 8 * partial_count, None);
+    let counters = GpuCgCounters { tolerance: solver.cg_tolerance as f32, ..Default::default() };
+    let counters = b.filled("backward Euler CG counters", storage, bytemuck::bytes_of(&counters));
+    let steps = b.buffer("backward Euler CG steps", storage, 8 * (u64::from(solver.cg_max_iterations) + 2), None);
+    let iterations =
+        b.filled("backward Euler CG iterations", BufferUsage::Uniform, &GpuCgStep::blocks(solver.cg_max_iterations));
+    let self_collision = scene.effects.contains(Effect::SelfCollision);
+    let self_buffers = self_collision_buffers(b);
+    let kernel = b.kernel(Shader::Implicit, &IMPLICIT_BINDINGS);
+    let s = b.plan.state;
+    b.plan.state.cg_counters = Some(counters);
+    let groups = [0, 1].map(|k| {
+        let (p, v) = (s.positions, s.velocities);
+        let buffers = [
+            vec![s.params, s.colliders, p[k], v[k], p[1 - k], v[1 - k], s.max_penetration],
+            vec![cg, blocks, partials, counters, steps, iterations, s.distance_fields],
+            self_buffers.bound().to_vec(),
+        ]
+        .concat();
+        b.group(kernel, format!("backward Euler {} -> {}", NAME[k], NAME[1 - k]), buffers)
+    });
+    let names = [
+        "start",
+        "linearise (first iteration)",
+        "linearise",
+        "CG product (first iteration)",
+        "CG product",
+        "CG update",
+        "CG direction",
+        "Newton update",
+        "finish",
+    ];
+    let pipelines: Vec<PipelineId> = (names.iter().enumerate())
+        .map(|(pass, what)| {
+            b.pipeline(kernel, &format!("backward Euler {what}"), &[(Constant::ImplicitPass, pass as u32)])
+        })
+        .collect();
+    let pass = |pipeline: usize, offset| Pass {
+        pipeline: pipelines[pipeline],
+        groups,
+        workgroups: vertices,
+        dynamic_offset: Some(offset),
+        indirect: None,
+    };
+    let mut substep = vec![pass(0, 0)];
+    for newton in 0..solver.newton_iterations {
+        substep.push(pass(if newton == 0 { 1 } else { 2 }, 0));
+        for k in 1..=solver.cg_max_iterations {
+            let offset = GpuCgStep::offset(k);
+            substep.push(pass(if k == 1 { 3 } else { 4 }, offset));
+            substep.push(pass(5, offset));
+            substep.push(pass(6, offset));
+        }
+        substep.push(pass(7, 0));
+    }
+    substep.push(pass(8, 0));
     let checks = self_collision.then(|| self_collision_checks(b, &self_buffers));
     Schedule { substep, tiled: None, packed: None, self_collision: checks }
 }

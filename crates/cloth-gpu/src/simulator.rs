@@ -122,10 +122,21 @@ impl<B: GpuBackend> Drop for GpuSimulator<B> {
 
 impl<B: GpuBackend> GpuSimulator<B> {
     /// What an implicit integrator's solver spent since creation: VBD's sweeps are fixed by the
-    /// scene, so the host counts them.
-    fn solver_spent(&self) -> Option<cloth_core::solver::SolverIterations> {
+    /// scene, so the host counts them; backward Euler's conjugate gradients count theirs on the
+    /// device (`counters`, read back with the diagnostics).
+    fn solver_spent(
+        &self,
+        counters: Option<crate::layout::GpuCgCounters>,
+    ) -> Option<cloth_core::solver::SolverIterations> {
         let substeps = self.substeps_run;
         match self.scene.integrator {
+            cloth_core::Integrator::BackwardEuler => counters.map(|c| cloth_core::solver::SolverIterations {
+                substeps,
+                newton: c.newton.into(),
+                cg: c.cg.into(),
+                cg_most: c.cg_most,
+                vbd: 0,
+            }),
             cloth_core::Integrator::Vbd => Some(cloth_core::solver::SolverIterations {
                 substeps,
                 vbd: substeps * u64::from(self.scene.solver.vbd_iterations),
@@ -319,21 +330,28 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
     fn diagnostics(&mut self) -> Result<Diagnostics, SimError> {
         let mut read = vec![self.state.max_penetration];
         read.extend(self.state.self_control);
+        read.extend(self.state.cg_counters);
         let bytes = self.read_buffers(&read)?;
         let bits = u32::from_le_bytes([bytes[0][0], bytes[0][1], bytes[0][2], bytes[0][3]]);
-        let candidate_lists = bytes.get(1).map(|b| {
-            let c: GpuSelfControl = bytemuck::pod_read_unaligned(&b[..size_of::<GpuSelfControl>()]);
+        let candidate_lists = self.state.self_control.map(|_| {
+            let c: GpuSelfControl = bytemuck::pod_read_unaligned(&bytes[1][..size_of::<GpuSelfControl>()]);
             CandidateListStats {
                 checks: c.checks.into(),
                 rebuilds: c.rebuilds.into(),
                 overflowed_lists: c.overflows.into(),
             }
         });
+        let counters = self.state.cg_counters.map(|_| {
+            let last = bytes.last().expect("the counters were read");
+            bytemuck::pod_read_unaligned::<crate::layout::GpuCgCounters>(
+                &last[..size_of::<crate::layout::GpuCgCounters>()],
+            )
+        });
         Ok(Diagnostics {
             max_penetration_m: f32::from_bits(bits) as f64,
             substeps_run: self.substeps_run,
             candidate_lists,
-            solver: self.solver_spent(),
+            solver: self.solver_spent(counters),
         })
     }
 

@@ -27,7 +27,9 @@ use vulkano::sync::{GpuFuture, PipelineStage};
 
 use crate::context::VulkanContext;
 use crate::raw::FrameRecorder;
-use crate::{BACKEND_NAME, COPY_SPIRV, SELF_HASH_SPIRV, STEP_SPIRV, TILED_STEP_SPIRV, VBD_SPIRV, XPBD_SPIRV};
+use crate::{
+    BACKEND_NAME, COPY_SPIRV, IMPLICIT_SPIRV, SELF_HASH_SPIRV, STEP_SPIRV, TILED_STEP_SPIRV, VBD_SPIRV, XPBD_SPIRV,
+};
 
 /// The cloth simulated by GLSL compute shaders (SPIR-V) through vulkano.
 pub type VulkanoSimulator = cloth_gpu::GpuSimulator<VulkanoBackend>;
@@ -239,6 +241,7 @@ impl GpuBackend for VulkanoBackend {
             Shader::Tiled(_) => TILED_STEP_SPIRV,
             Shader::Xpbd => XPBD_SPIRV,
             Shader::Vbd => VBD_SPIRV,
+            Shader::Implicit => IMPLICIT_SPIRV,
             Shader::Copy => COPY_SPIRV,
             Shader::SelfHash => SELF_HASH_SPIRV,
         };

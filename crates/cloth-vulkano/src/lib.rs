@@ -3,7 +3,7 @@
 //! The GLSL/SPIR-V compute backend of the cloth workbench: [`VulkanoBackend`] implements
 //! [`cloth_gpu::GpuBackend`], so [`VulkanoSimulator`] (`cloth_gpu::GpuSimulator<VulkanoBackend>`)
 //! runs the shared plan with the kernels of `shaders/glsl/` (`cloth_step.comp`,
-//! `cloth_step_tiled.comp`, `xpbd.comp`, `vbd.comp`, sharing `effects.glsl`, `layout.glsl`, `forces.glsl` and
+//! `cloth_step_tiled.comp`, `xpbd.comp`, `vbd.comp`, `implicit.comp`, sharing `effects.glsl`, `layout.glsl`, `forces.glsl` and
 //! `grid.glsl`), compiled to SPIR-V by `glslc` at build time. The plan's pipeline constants are
 //! Vulkan specialization constants; every parameter reaches the kernels through one descriptor
 //! set; one `advance` is one command buffer, recorded with one memory barrier between dispatches
@@ -30,6 +30,8 @@ pub const TILED_STEP_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/cl
 pub const XPBD_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/xpbd.spv"));
 /// SPIR-V of the Vertex Block Descent passes, compiled from `shaders/glsl/vbd.comp`.
 pub const VBD_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/vbd.spv"));
+/// SPIR-V of the backward-Euler passes, compiled from `shaders/glsl/implicit.comp`.
+pub const IMPLICIT_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/implicit.spv"));
 
 /// SPIR-V of the passes that rebuild self-collision's spatial hash, from `shaders/glsl/self_hash.comp`.
 pub const SELF_HASH_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/self_hash.spv"));

@@ -9,7 +9,10 @@ use cloth_gpu::{DeviceLimits, Frame, GpuBackend, GpuTuning};
 use wgpu::util::DeviceExt;
 
 use crate::context::GpuContext;
-use crate::{BACKEND_NAME, COPY_SHADER, SELF_HASH_SHADER, STEP_SHADER, VBD_SHADER, XPBD_SHADER, tiled_shader_source};
+use crate::{
+    BACKEND_NAME, COPY_SHADER, IMPLICIT_SHADER, SELF_HASH_SHADER, STEP_SHADER, VBD_SHADER, XPBD_SHADER,
+    tiled_shader_source,
+};
 
 /// The cloth simulated by WGSL compute shaders through wgpu.
 pub type WgpuSimulator = cloth_gpu::GpuSimulator<WgpuBackend>;
@@ -145,6 +148,7 @@ impl GpuBackend for WgpuBackend {
             Shader::Tiled(tile) => ("cloth_step_tiled.wgsl", "substeps", tiled_shader_source(&tile)),
             Shader::Xpbd => ("xpbd.wgsl", "xpbd", XPBD_SHADER.to_string()),
             Shader::Vbd => ("vbd.wgsl", "vbd", VBD_SHADER.to_string()),
+            Shader::Implicit => ("implicit.wgsl", "implicit", IMPLICIT_SHADER.to_string()),
             Shader::Copy => ("copy.wgsl", "copy", COPY_SHADER.to_string()),
             Shader::SelfHash => ("self_hash.wgsl", "build", SELF_HASH_SHADER.to_string()),
         };

@@ -79,6 +79,17 @@ pub const VBD_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/vbd.wgsl")
 );
 
+/// WGSL source of the backward-Euler passes: `layout.wgsl`, `colliders.wgsl`, `common.wgsl`,
+/// `self_collision.wgsl`, `self_partners.wgsl`, `implicit.wgsl`.
+pub const IMPLICIT_SHADER: &str = concat!(
+    include_str!("../../../shaders/wgsl/layout.wgsl"),
+    include_str!("../../../shaders/wgsl/colliders.wgsl"),
+    include_str!("../../../shaders/wgsl/common.wgsl"),
+    include_str!("../../../shaders/wgsl/self_collision.wgsl"),
+    include_str!("../../../shaders/wgsl/self_partners.wgsl"),
+    include_str!("../../../shaders/wgsl/implicit.wgsl")
+);
+
 /// WGSL source of the copy kernel that measures the memory bandwidth (`copy.wgsl`).
 pub const COPY_SHADER: &str = include_str!("../../../shaders/wgsl/copy.wgsl");
 
