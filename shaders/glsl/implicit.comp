@@ -200,8 +200,8 @@ StencilSpring stencil_spring(uint s) {
 
 // The model's force on free vertex i at (vi, vj) in the iterate state (x, v) at time t, N
 // (cloth_core::reference's variant_force_and_stick, as cloth_step.comp evaluates it), with the
-// friction's step h.
-vec3 iterate_force(uint i, uint vi, uint vj, vec3 x, vec3 v, float t) {
+// friction's step h; `stuck` and `stick_normal`: a contact whose friction holds the vertex.
+vec3 iterate_force(uint i, uint vi, uint vj, vec3 x, vec3 v, float t, out bool stuck, out vec3 stick_normal) {
     float mass = params.vertex_mass;
     float h = params.substep_dt;
     vec3 force = vec3(0.0);
@@ -233,6 +233,8 @@ vec3 iterate_force(uint i, uint vi, uint vj, vec3 x, vec3 v, float t) {
         force += sum_over_partners(i, vi, vj, PairContext(x, v, h)).xyz;
     }
     vec3 other_forces = force;
+    stuck = false;
+    stick_normal = vec3(0.0);
     if (EFFECT_CONTACT) {
         for (uint c = 0u; c < params.collider_count; c++) {
             vec3 center = collider_center(c, t);
@@ -246,7 +248,12 @@ vec3 iterate_force(uint i, uint vi, uint vj, vec3 x, vec3 v, float t) {
             if (contact_force(v_rel, surface, colliders[c].stiffness, colliders[c].damping, normal, contact)) {
                 force += contact;
                 if (EFFECT_FRICTION) {
-                    force += friction_force(other_forces, v_rel, normal, mass, h, colliders[c].friction);
+                    float mu = colliders[c].friction;
+                    force += friction_force(other_forces, v_rel, normal, mass, h, mu);
+                    if (!stuck && friction_holds(other_forces, v_rel, normal, mass, h, mu)) {
+                        stuck = true;
+                        stick_normal = normal;
+                    }
                 }
             }
         }
@@ -307,7 +314,9 @@ vec2 linearise(uint i, bool first) {
     if (!first) {
         t = t + h;
     }
-    vec3 f = iterate_force(i, vi, vj, x, v, t);
+    bool stuck;
+    vec3 stick_normal;
+    vec3 f = iterate_force(i, vi, vj, x, v, t, stuck, stick_normal);
     vec3 own_dx;
     vec3 own_dv;
     change_of(i, own_dx, own_dv);
@@ -472,7 +481,21 @@ vec4 finish(uint i) {
     float t_end = velocities_in[i].w + params.substep_dt;
     vec3 x = p.xyz;
     vec3 v = velocities_out[i].xyz;
-    if (p.w > 0.0 && EFFECT_SELF_COLLISION) {
+    if (EFFECT_FRICTION && p.w > 0.0) {
+        // Static friction at the substep's end (as RK4's last stage): a vertex friction holds
+        // sticks, its tangential motion over the substep undone.
+        uint nx = params.grid_nx;
+        bool stuck;
+        vec3 n;
+        iterate_force(i, i % nx, i / nx, x, v, t_end, stuck, n);
+        if (stuck) {
+            vec3 d = x - positions_in[i].xyz;
+            x = x - (d - n * dot(d, n));
+            v = n * dot(v, n);
+            positions_out[i] = vec4(x, p.w);
+        }
+    }
+    if (EFFECT_SELF_COLLISION && p.w > 0.0) {
         // The speed limit (self_collision.glsl).
         vec3 x0 = positions_in[i].xyz;
         x = limit_step(x0, x);

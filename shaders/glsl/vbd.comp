@@ -327,6 +327,23 @@ void step_color(uint k) {
         }
     }
     vec3 moved = newton_step(x, t);
+    if (EFFECT_CONTACT) {
+        // A step from outside a collider into it stops at its surface
+        // (cloth_core::vbd::surface_fraction).
+        float t_end = velocities_in[index].w + h;
+        float fraction = 1.0;
+        for (uint c = 0u; c < params.collider_count; c++) {
+            vec3 center = collider_center(c, t_end);
+            float start = collider_distance(c, center, x);
+            float end = collider_distance(c, center, moved);
+            if (start >= 0.0 && end < 0.0) {
+                fraction = min(fraction, start / (start - end));
+            }
+        }
+        if (fraction < 1.0) {
+            moved = x + (moved - x) * fraction;
+        }
+    }
     if (sweep.chebyshev != 0u) {
         vec3 before = history[2u * index + 1u].xyz;
         moved = before + (moved - before) * sweep.omega;

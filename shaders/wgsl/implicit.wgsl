@@ -208,10 +208,17 @@ fn stencil_spring(s: u32) -> StencilSpring {
     }
 }
 
-// The model's force on free vertex i at (vi, vj) in the iterate state (x, v) at time t, N
+// The model's force (N) and the normal of a contact whose friction holds the vertex, if any.
+struct ForceAndStick {
+    force: vec3<f32>,
+    stuck: bool,
+    normal: vec3<f32>,
+}
+
+// The model's force on free vertex i at (vi, vj) in the iterate state (x, v) at time t
 // (cloth_core::reference's variant_force_and_stick, as cloth_step.wgsl evaluates it), with the
 // friction's step h.
-fn iterate_force(i: u32, vi: u32, vj: u32, x: vec3<f32>, v: vec3<f32>, t: f32) -> vec3<f32> {
+fn iterate_force(i: u32, vi: u32, vj: u32, x: vec3<f32>, v: vec3<f32>, t: f32) -> ForceAndStick {
     let mass = params.vertex_mass;
     let h = params.substep_dt;
     var force = vec3<f32>(0.0);
@@ -246,6 +253,8 @@ fn iterate_force(i: u32, vi: u32, vj: u32, x: vec3<f32>, v: vec3<f32>, t: f32) -
         force += sum_over_partners(i, vi, vj, PairContext(x, v, h)).xyz;
     }
     let other_forces = force;
+    var stuck = false;
+    var stick_normal = vec3<f32>(0.0);
     if (EFFECT_CONTACT) {
         for (var c = 0u; c < params.collider_count; c++) {
             let center = collider_center(c, t);
@@ -258,12 +267,17 @@ fn iterate_force(i: u32, vi: u32, vj: u32, x: vec3<f32>, v: vec3<f32>, t: f32) -
             if (contact.hit) {
                 force += contact.force;
                 if (EFFECT_FRICTION) {
-                    force += friction_force(other_forces, v_rel, contact.normal, mass, h, colliders[c].friction);
+                    let mu = colliders[c].friction;
+                    force += friction_force(other_forces, v_rel, contact.normal, mass, h, mu);
+                    if (!stuck && friction_holds(other_forces, v_rel, contact.normal, mass, h, mu)) {
+                        stuck = true;
+                        stick_normal = contact.normal;
+                    }
                 }
             }
         }
     }
-    return force;
+    return ForceAndStick(force, stuck, stick_normal);
 }
 
 // Where pinned vertex j's motion puts it at the substep's end (positions), and its velocity there.
@@ -330,7 +344,7 @@ fn linearise(i: u32, first: bool) -> vec2<f32> {
     if (!first) {
         t = t + h;
     }
-    let f = iterate_force(i, vi, vj, x, v, t);
+    let f = iterate_force(i, vi, vj, x, v, t).force;
     let own = change_of(i);
     var drop = vec3<f32>(0.0);
     var diagonal = mat3_scaled(mat3_identity(), m);
@@ -492,12 +506,29 @@ fn finish(i: u32) -> vec4<f32> {
     let t_end = velocities_in[i].w + params.substep_dt;
     var x = p.xyz;
     var v = velocities_out[i].xyz;
-    if ((p.w > 0.0) & EFFECT_SELF_COLLISION) {
-        // The speed limit (self_collision.wgsl).
-        let x0 = positions_in[i].xyz;
-        x = limit_step(x0, x);
-        v = limit_velocity(v);
-        positions_out[i] = vec4<f32>(x, p.w);
+    if (EFFECT_FRICTION) {
+        if (p.w > 0.0) {
+            // Static friction at the substep's end (as RK4's last stage): a vertex friction holds
+            // sticks, its tangential motion over the substep undone.
+            let nx = params.grid_nx;
+            let held = iterate_force(i, i % nx, i / nx, x, v, t_end);
+            if (held.stuck) {
+                let n = held.normal;
+                let d = x - positions_in[i].xyz;
+                x = x - (d - n * dot(d, n));
+                v = n * dot(v, n);
+                positions_out[i] = vec4<f32>(x, p.w);
+            }
+        }
+    }
+    if (EFFECT_SELF_COLLISION) {
+        if (p.w > 0.0) {
+            // The speed limit (self_collision.wgsl).
+            let x0 = positions_in[i].xyz;
+            x = limit_step(x0, x);
+            v = limit_velocity(v);
+            positions_out[i] = vec4<f32>(x, p.w);
+        }
     }
     velocities_out[i] = vec4<f32>(v, t_end);
     if (EFFECT_CONTACT) {

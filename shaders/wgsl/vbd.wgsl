@@ -323,6 +323,23 @@ fn step_color(k: u32) {
         }
     }
     var moved = newton_step(x, t);
+    if (EFFECT_CONTACT) {
+        // A step from outside a collider into it stops at its surface
+        // (cloth_core::vbd::surface_fraction).
+        let t_end = velocities_in[index].w + h;
+        var fraction = 1.0;
+        for (var c = 0u; c < params.collider_count; c++) {
+            let center = collider_center(c, t_end);
+            let start = collider_distance(c, center, x);
+            let end = collider_distance(c, center, moved);
+            if ((start >= 0.0) & (end < 0.0)) {
+                fraction = min(fraction, start / (start - end));
+            }
+        }
+        if (fraction < 1.0) {
+            moved = x + (moved - x) * fraction;
+        }
+    }
     if (sweep.chebyshev != 0u) {
         let before = history[2u * index + 1u].xyz;
         moved = before + (moved - before) * sweep.omega;

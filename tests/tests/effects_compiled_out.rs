@@ -256,11 +256,17 @@ fn pipelines_with(
         Integrator::VelocityVerlet => ("STAGE", vec![1, 2]),
         Integrator::RungeKutta4 => ("STAGE", vec![3, 4, 5, 6]),
         Integrator::Xpbd => ("XPBD_PASS", vec![0, 1, 2, 3]),
+        Integrator::Vbd => ("VBD_PASS", vec![0, 1, 2]),
+        Integrator::BackwardEuler => ("IMPLICIT_PASS", (0..=8).collect()),
     };
     let (source, entry) = match (language, integrator) {
         (Language::Wgsl, Integrator::Xpbd) => (cloth_wgpu::XPBD_SHADER.to_string(), "xpbd"),
+        (Language::Wgsl, Integrator::Vbd) => (cloth_wgpu::VBD_SHADER.to_string(), "vbd"),
+        (Language::Wgsl, Integrator::BackwardEuler) => (cloth_wgpu::IMPLICIT_SHADER.to_string(), "implicit"),
         (Language::Wgsl, _) => (cloth_wgpu::STEP_SHADER.to_string(), "substep"),
         (Language::Glsl, Integrator::Xpbd) => (glsl_source("xpbd.comp"), "main"),
+        (Language::Glsl, Integrator::Vbd) => (glsl_source("vbd.comp"), "main"),
+        (Language::Glsl, Integrator::BackwardEuler) => (glsl_source("implicit.comp"), "main"),
         (Language::Glsl, _) => (glsl_source("cloth_step.comp"), "main"),
     };
     let mut all: Vec<(String, BTreeSet<String>)> = stages
@@ -313,7 +319,13 @@ fn absent_collider_kinds_leave_no_reachable_work() {
                 }
             }
         }
-        let (pipeline, work) = pipelines_with(language, integrator, effects, &ColliderKind::ALL).remove(0);
+        // The pipeline that evaluates the colliders' surfaces: the force kernel's, VBD's colour
+        // pass, backward Euler's linearisation (XPBD projects them: not all kinds have one).
+        let evaluating = match integrator {
+            Integrator::Vbd | Integrator::BackwardEuler => 1,
+            _ => 0,
+        };
+        let (pipeline, work) = pipelines_with(language, integrator, effects, &ColliderKind::ALL).remove(evaluating);
         if integrator != Integrator::Xpbd {
             for f in ColliderKind::ALL.into_iter().flat_map(work_of_kind) {
                 assert!(work.contains(&f), "{pipeline}: every kind present, `{f}` should be reachable: {work:?}");
@@ -381,5 +393,11 @@ fn present_effects_have_reachable_work() {
         }
         let predict = pipelines(language, Integrator::Xpbd, every).remove(0).1;
         assert!(predict.contains("wind_force") && predict.contains("motion_displacement"), "{language:?}: {predict:?}");
+        let predict = pipelines(language, Integrator::Vbd, every).remove(0).1;
+        assert!(predict.contains("wind_force") && predict.contains("repulsion_force"), "{language:?}: {predict:?}");
+        let linearise = pipelines(language, Integrator::BackwardEuler, every).remove(1).1;
+        for f in ["gravity_force", "add_spring_force", "contact_force", "friction_force", "repulsion_force"] {
+            assert!(linearise.contains(f), "{language:?} backward Euler: `{f}` should be reachable: {linearise:?}");
+        }
     }
 }

@@ -24,16 +24,20 @@ fn wgsl_modules() -> Vec<(&'static str, String)> {
         ("cloth_step_tiled.wgsl", tiled),
         ("xpbd.wgsl", cloth_wgpu::XPBD_SHADER.to_string()),
         ("self_hash.wgsl", cloth_wgpu::SELF_HASH_SHADER.to_string()),
+        ("vbd.wgsl", cloth_wgpu::VBD_SHADER.to_string()),
+        ("implicit.wgsl", cloth_wgpu::IMPLICIT_SHADER.to_string()),
         ("render.wgsl", RENDER_SHADER.to_string()),
     ]
 }
 
 /// Every SPIR-V module, by file name.
-const SPIRV_MODULES: [(&str, &[u8]); 4] = [
+const SPIRV_MODULES: [(&str, &[u8]); 6] = [
     ("cloth_step.spv", cloth_vulkano::STEP_SPIRV),
     ("cloth_step_tiled.spv", cloth_vulkano::TILED_STEP_SPIRV),
     ("xpbd.spv", cloth_vulkano::XPBD_SPIRV),
     ("self_hash.spv", cloth_vulkano::SELF_HASH_SPIRV),
+    ("vbd.spv", cloth_vulkano::VBD_SPIRV),
+    ("implicit.spv", cloth_vulkano::IMPLICIT_SPIRV),
 ];
 
 /// The modules that read the colliders (the hash's reads the parameters only).
@@ -226,14 +230,13 @@ fn plans() -> Vec<Plan> {
 
 #[test]
 fn every_constant_the_plan_sets_is_declared_by_its_module() {
-    let wgsl: HashMap<&str, naga::Module> = [("step", 0), ("tiled", 1), ("xpbd", 2), ("self_hash", 3)]
+    let kinds = [("step", 0), ("tiled", 1), ("xpbd", 2), ("self_hash", 3), ("vbd", 4), ("implicit", 5)];
+    let wgsl: HashMap<&str, naga::Module> = kinds
         .into_iter()
         .map(|(kind, k)| (kind, naga::front::wgsl::parse_str(&wgsl_modules()[k].1).unwrap()))
         .collect();
-    let spirv: HashMap<&str, Reflection> = [("step", 0), ("tiled", 1), ("xpbd", 2), ("self_hash", 3)]
-        .into_iter()
-        .map(|(kind, k)| (kind, reflect(SPIRV_MODULES[k].1)))
-        .collect();
+    let spirv: HashMap<&str, Reflection> =
+        kinds.into_iter().map(|(kind, k)| (kind, reflect(SPIRV_MODULES[k].1))).collect();
     let mut checked = 0;
     for plan in plans() {
         for pipeline in &plan.pipelines {
@@ -242,6 +245,8 @@ fn every_constant_the_plan_sets_is_declared_by_its_module() {
                 Shader::Tiled(_) => "tiled",
                 Shader::Xpbd => "xpbd",
                 Shader::SelfHash => "self_hash",
+                Shader::Vbd => "vbd",
+                Shader::Implicit => "implicit",
                 Shader::Copy => unreachable!("a simulation's plan has no copy kernel"),
             };
             for (constant, _) in &pipeline.constants {
@@ -296,7 +301,29 @@ fn self_collision_constants_are_the_hosts() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 9, "three modules, three constants");
+    assert_eq!(checked, 15, "five modules (step, XPBD, the hash, VBD, backward Euler), three constants");
+}
+
+/// VBD's friction holds a vertex below the slip speed the CPU reference uses
+/// (`cloth_core::vbd::FRICTION_SLIP_SPEED`), in both shading languages.
+#[test]
+fn vbd_constants_are_the_hosts() {
+    let expected = cloth_core::vbd::FRICTION_SLIP_SPEED as f32;
+    let module = naga::front::wgsl::parse_str(cloth_wgpu::VBD_SHADER).unwrap();
+    let (_, constant) = (module.constants.iter())
+        .find(|(_, c)| c.name.as_deref() == Some("FRICTION_SLIP_SPEED"))
+        .expect("vbd.wgsl declares FRICTION_SLIP_SPEED");
+    match module.global_expressions[constant.init] {
+        naga::Expression::Literal(naga::Literal::F32(v)) => assert_eq!(v, expected, "vbd.wgsl"),
+        ref other => panic!("vbd.wgsl: FRICTION_SLIP_SPEED is {other:?}"),
+    }
+    let glsl =
+        std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders/glsl/vbd.comp"))
+            .expect("vbd.comp");
+    let line = glsl.lines().find(|l| l.contains("const float FRICTION_SLIP_SPEED")).expect("vbd.comp declares it");
+    let value: f32 =
+        line.split('=').nth(1).and_then(|v| v.trim().trim_end_matches(';').parse().ok()).expect("a number");
+    assert_eq!(value, expected, "vbd.comp: {line}");
 }
 
 /// The candidates pass of `self_hash` (both shading languages) shares its workgroup among the

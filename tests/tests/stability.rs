@@ -22,7 +22,7 @@ fn hard(name: &str) -> Scene {
 }
 
 fn with_integrator(scene: &Scene, integrator: Integrator) -> Scene {
-    Scene { integrator, ..scene.clone() }
+    cloth_conformance::under(scene, integrator)
 }
 
 /// The energy a case's tolerance is a fraction of, J: the magnitude of each initial energy term

@@ -653,7 +653,7 @@ impl<R: Real> ReferenceSimulator<R> {
     /// zero after), and the pins' prescribed change on the pinned ones. `f` is the model's whole
     /// force ([`variant_force_and_stick`]); `K` and `C` hold the springs' blocks and the contacts'
     /// (the linearised part), while drag, wind, friction and self-collision enter through `f` at
-    /// the iterate only.
+    /// the iterate only. A vertex that friction holds at the end state sticks (as under RK4).
     fn backward_euler_substep(&mut self) {
         let p = &self.params;
         let (h, m, n) = (p.dt, p.mass, self.positions.len());
@@ -695,6 +695,16 @@ impl<R: Real> ReferenceSimulator<R> {
                 };
             }
             time = t1;
+        }
+        if self.scene.effects.contains(Effect::Friction) {
+            // Static friction at the substep's end, as RK4's: the friction is a force of the
+            // iterate, outside the linearisation, so a vertex it holds would otherwise creep.
+            let (_, sticks) = self.forces_and_sticks(&x_bar, &v_bar, t1, h);
+            for (i, normal) in sticks.into_iter().enumerate() {
+                if let Some(normal) = normal.filter(|_| !self.pinned[i]) {
+                    (x_bar[i], v_bar[i]) = stick(x_bar[i], v_bar[i], x0[i], normal);
+                }
+            }
         }
         self.positions = x_bar;
         self.velocities = v_bar;
@@ -787,7 +797,15 @@ impl<R: Real> ReferenceSimulator<R> {
                     terms.add_contact((x[i], x0[i]), surface, velocity, c.stiffness, c.damping, mu, h);
                 }
             }
-            terms.step(x[i])
+            let moved = terms.step(x[i]);
+            // A step from outside a collider into it stops at its surface (vbd::surface_fraction).
+            let mut fraction = R::one();
+            for (c, &(center, _)) in p.colliders.iter().zip(&colliders) {
+                if let Some(s) = vbd::surface_fraction(c.distance(center, x[i]), c.distance(center, moved)) {
+                    fraction = fraction.min(s);
+                }
+            }
+            if fraction < R::one() { x[i] + (moved - x[i]) * fraction } else { moved }
         };
         // The vertices of each colour (free ones only).
         let colours: Vec<Vec<usize>> = (0..VERTEX_COLOR_COUNT)

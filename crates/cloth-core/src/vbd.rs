@@ -188,6 +188,20 @@ pub fn gravity_share<R: Real>(acceleration: Vec3<R>, gravity: Vec3<R>) -> R {
     (acceleration.dot(gravity) / g2).max(R::zero()).min(R::one())
 }
 
+/// Where along a local step a vertex outside a collider (`φ` = `start` ≥ 0 at its position) that
+/// the step would take inside (`φ` = `end` < 0) meets the surface: the fraction `start/(start −
+/// end)` of the step (`φ` interpolated linearly along it), or `None` for a step that does not enter.
+///
+/// The penalty contact is a quadratic only inside: a Newton step taken outside, where the contact
+/// is not in the local potential, can go as deep as the inertial prediction, and the next sweep's
+/// step, with the contact, back out beyond the surface; the sweeps then alternate and never
+/// settle (measured on `scenes/floor.ron` at 12 × 12, 3 substeps a frame: 1.1 cm of penetration
+/// with 10 sweeps and with 100, against 0.4 mm for backward Euler). Stopping at the surface, the
+/// vertex meets the contact from there on.
+pub fn surface_fraction<R: Real>(start: R, end: R) -> Option<R> {
+    (start >= R::zero() && end < R::zero()).then(|| start / (start - end))
+}
+
 /// What a sweep needs besides the positions: the grid's width, each vertex's mass (kg), whether
 /// it moves freely, its inertial prediction `y` (m), its springs and their stiffness by kind
 /// (N/m, structural, shear, bend), and the step `h` (s).
