@@ -344,7 +344,12 @@ vec2 linearise(uint i, bool first) {
     if (EFFECT_CONTACT) {
         for (uint c = 0u; c < params.collider_count; c++) {
             vec3 center = collider_center(c, t);
-            if (collider_distance(c, center, x) < 0.0) {
+            // In the linearisation where the vertex is inside, or would end the substep inside at
+            // the iterate's velocity or at the substep's first (the reference's
+            // linearised_system says why).
+            bool inside = collider_distance(c, center, x) < 0.0 || collider_distance(c, center, x0 + v * h) < 0.0
+                || collider_distance(c, center, x0 + v0 * h) < 0.0;
+            if (inside) {
                 Surface surface = collider_surface(c, center, x);
                 vec3 n = surface.normal;
                 Mat3 k_c = mat3_scaled(mat3_outer(n, n), colliders[c].stiffness);

@@ -87,7 +87,7 @@ vec4 pair_term(uint j, PairContext c) {
 
 // The slip speed below which friction holds a vertex like a stiff tangential spring, m/s
 // (cloth_core::vbd::FRICTION_SLIP_SPEED).
-const float FRICTION_SLIP_SPEED = 1e-3;
+const float FRICTION_SLIP_SPEED = 1e-4;
 
 // A 3 × 3 matrix by rows (cloth_core::real::Mat3).
 struct Mat3 {

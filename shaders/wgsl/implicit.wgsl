@@ -368,7 +368,13 @@ fn linearise(i: u32, first: bool) -> vec2<f32> {
     if (EFFECT_CONTACT) {
         for (var c = 0u; c < params.collider_count; c++) {
             let center = collider_center(c, t);
-            if (collider_distance(c, center, x) < 0.0) {
+            // In the linearisation where the vertex is inside, or would end the substep inside at
+            // the iterate's velocity or at the substep's first (the reference's
+            // linearised_system says why).
+            let inside = (collider_distance(c, center, x) < 0.0)
+                | (collider_distance(c, center, x0 + v * h) < 0.0)
+                | (collider_distance(c, center, x0 + v0 * h) < 0.0);
+            if (inside) {
                 let surface = collider_surface(c, center, x);
                 let n = surface.normal;
                 let k_c = mat3_scaled(mat3_outer(n, n), colliders[c].stiffness);

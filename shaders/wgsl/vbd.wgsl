@@ -71,7 +71,7 @@ fn pair_term(j: u32, c: PairContext) -> vec4<f32> {
 
 // The slip speed below which friction holds a vertex like a stiff tangential spring, m/s
 // (cloth_core::vbd::FRICTION_SLIP_SPEED).
-const FRICTION_SLIP_SPEED: f32 = 1e-3;
+const FRICTION_SLIP_SPEED: f32 = 1e-4;
 
 // A 3 × 3 matrix by rows (cloth_core::real::Mat3).
 struct Mat3 {

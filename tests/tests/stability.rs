@@ -206,6 +206,33 @@ fn step_at_0_95_of_the_bound(backend: &Backend) {
     }
 }
 
+/// Backward Euler and VBD far beyond the explicit integrators' limit: the stiff cloth with one
+/// substep a frame of 10 and of 100 times semi-implicit Euler's stability bound (the Gershgorin
+/// bound `Auto` uses), for at least 0.25 s: finite, and within the suite's energy bound.
+fn implicit_integrators_at_10_and_100_times_the_explicit_bound(backend: &Backend) {
+    let base = hard("stiff_springs.ron");
+    for integrator in Integrator::IMPLICIT {
+        for factor in [10.0, 100.0] {
+            // The default solver: 100 times the bound, the stiff springs need more than the
+            // suites' 10 CG iterations to converge (k h²/m ≈ 3000).
+            let mut scene = Scene { integrator, ..base.clone() };
+            let euler = Scene { integrator: Integrator::SemiImplicitEuler, ..scene.clone() };
+            scene.time.substeps = Substeps::Fixed(1);
+            scene.time.frame_dt = factor * stability::stable_substep(&euler);
+            let frames = ((0.25 / scene.time.frame_dt).ceil() as u32).max(10);
+            let Some(outcome) = run_checked(backend, &scene, frames, 1) else { return };
+            eprintln!(
+                "{}: {factor} times the explicit bound ({:.3e} s), {frames} steps: max strain {:.3}, energy {:.3e} -> {:.3e} J",
+                outcome.name,
+                scene.time.frame_dt,
+                outcome.max_strain,
+                outcome.energies[0],
+                outcome.energies.last().unwrap()
+            );
+        }
+    }
+}
+
 fn light_vertices_of_1e_5_kg(backend: &Backend) {
     every_integrator(backend, &hard("light_vertices.ron"), 0.05, 0.1, |_| {});
 }
@@ -233,7 +260,10 @@ fn heavy_vertices_of_10_kg(backend: &Backend) {
 ///
 /// XPBD's `Auto` looks at the springs only (5 substeps here): at 30 m/s a vertex then crosses two
 /// cells per substep, the unconverged springs stored 6% of the energy at the impact (over the 5%
-/// tolerance), so the case gives XPBD 20 substeps per frame.
+/// tolerance), so the case gives XPBD 20 substeps per frame, and backward Euler and VBD, whose
+/// `Auto` looks at the springs too, the same (at 5 a vertex moves the sphere's radius a substep:
+/// backward Euler's contact, linearised about the sphere's tangent plane, then stored 10 times
+/// the energy of the impact).
 fn impact_at_30_m_s_does_not_tunnel(backend: &Backend) {
     let mut scene = hard("impact.ron");
     scene.time.substeps = Substeps::Auto;
@@ -245,7 +275,14 @@ fn impact_at_30_m_s_does_not_tunnel(backend: &Backend) {
     }
     // 46 J of kinetic energy go into springs of 400 N/m as the cloth's centre stops and its edges
     // whip around: they stretch up to about twice their length (strain 1.1 seen): bound 2.
-    every_integrator_with(backend, &scene, |i| (i == Integrator::Xpbd).then_some(20), 0.2, 2.0, |_| {});
+    every_integrator_with(
+        backend,
+        &scene,
+        |i| (i == Integrator::Xpbd || i.is_implicit()).then_some(20),
+        0.2,
+        2.0,
+        |_| {},
+    );
 }
 
 /// Starting inside the sphere, the cloth is pushed out without exploding: the energy bound
@@ -318,18 +355,21 @@ fn fast_moving_sphere(backend: &Backend) {
     }
 }
 
-/// Substeps of the soak on a backend: a million on the CPU backends; on the GPU backends a
-/// million too when `CLOTH_SOAK_SUBSTEPS` says so (`scripts/gpu-check.sh stability` does), else
-/// 4e4 for the force-based integrators and 3e3 for XPBD, since lavapipe spends about 50 µs per
-/// dispatch and an XPBD substep of this cloth is 112 dispatches (the CPU backends run the same
-/// code paths a million substeps; the GPU runs check the kernels over a long run within CI's time).
+/// Substeps of the soak on a backend: a million on the CPU backends (1e5 for the implicit
+/// integrators, whose substeps are tens of sweeps or solver iterations each); on the GPU backends
+/// a million too when `CLOTH_SOAK_SUBSTEPS` says so (`scripts/gpu-check.sh stability` does), else
+/// 4e4 for the force-based integrators and 3e3 for XPBD, VBD and backward Euler, since lavapipe
+/// spends about 50 µs per dispatch and a substep of this cloth is 112 dispatches under XPBD, 52
+/// under VBD and 66 under backward Euler with the suites' solver (the CPU backends run the same
+/// code paths; the GPU runs check the kernels over a long run within CI's time).
 fn soak_substeps(backend: &Backend, integrator: Integrator) -> u64 {
     if let Some(n) = std::env::var("CLOTH_SOAK_SUBSTEPS").ok().and_then(|s| s.parse().ok()) {
         return n;
     }
     match (backend.name, integrator) {
+        ("cpu" | "cpu-f64", i) if i.is_implicit() => 100_000,
         ("cpu" | "cpu-f64", _) => 1_000_000,
-        (_, Integrator::Xpbd) => 3_000,
+        (_, i) if i == Integrator::Xpbd || i.is_implicit() => 3_000,
         _ => 40_000,
     }
 }
@@ -720,6 +760,7 @@ fn twist_passes_through_itself_without_self_collision(backend: &Backend) {
 cloth_conformance::for_every_backend! {
     stiff_springs_with_auto_substeps,
     step_at_0_95_of_the_bound,
+    implicit_integrators_at_10_and_100_times_the_explicit_bound,
     light_vertices_of_1e_5_kg,
     heavy_vertices_of_10_kg,
     impact_at_30_m_s_does_not_tunnel,

@@ -666,7 +666,7 @@ impl<R: Real> ReferenceSimulator<R> {
         let (mut dx, mut dv, mut drop) = (vec![Vec3::zero(); n], vec![Vec3::zero(); n], vec![Vec3::zero(); n]);
         for _ in 0..solver.newton_iterations {
             let f = self.forces(&x_bar, &v_bar, time, h);
-            let system = self.linearised_system(&x_bar, &v_bar, time);
+            let system = self.linearised_system(&x_bar, &v_bar, (&x0, &v0), time);
             for i in 0..n {
                 (dx[i], dv[i]) = if self.pinned[i] {
                     (x_end[i] - x_bar[i], v_end[i] - v_bar[i])
@@ -713,8 +713,26 @@ impl<R: Real> ReferenceSimulator<R> {
 
     /// The linearised system of a backward-Euler iteration about `(x, v)` at time `time`: every
     /// spring's blocks (the damping ones with `SpringDamping`) and the blocks of each free
-    /// vertex's contacts.
-    fn linearised_system(&self, x: &[Vec3<R>], v: &[Vec3<R>], time: R) -> LinearisedStep<R> {
+    /// vertex's contacts: `k_c n nᵀ`, and `c n nᵀ` while approaching, with `n` the collider's
+    /// normal seen from `x`.
+    ///
+    /// A contact is in the linearisation where the vertex is inside the collider at `x`, or would
+    /// end the substep inside it at the iterate's velocity (`x⁰ + h v`) or at the substep's first
+    /// (`x⁰ + h v⁰`), not only where `x` is inside. The penalty is a force of the inside only: a
+    /// vertex about to land would otherwise be stepped as in free fall, deep into the collider,
+    /// and pushed back out by the next iteration's penalty, and the iterates alternate in and out
+    /// of the contact, storing penalty energy from nowhere (measured: a cloth thrown at the ground
+    /// at 10 m/s, `scenes/floor.ron` at 12 × 12, reached 4.6 times its starting energy; a cloth
+    /// landing on `scenes/hard/tilted_table.ron`, 1.3 times). Linearised from outside, the contact
+    /// is a stiffness about where the iterate is, which slows the approach: no force pulls the
+    /// vertex onto the surface.
+    fn linearised_system(
+        &self,
+        x: &[Vec3<R>],
+        v: &[Vec3<R>],
+        (x0, v0): (&[Vec3<R>], &[Vec3<R>]),
+        time: R,
+    ) -> LinearisedStep<R> {
         let p = &self.params;
         let damped = self.scene.effects.contains(Effect::SpringDamping);
         let springs = self
@@ -730,14 +748,16 @@ impl<R: Real> ReferenceSimulator<R> {
         for c in &p.colliders {
             let (center, velocity) = c.at(time, moving);
             for i in (0..x.len()).filter(|&i| !self.pinned[i]) {
-                if c.distance(center, x[i]) < R::zero() {
-                    let surface = c.surface(center, x[i]);
-                    contacts.push(ContactTerms {
-                        vertex: i,
-                        stiffness: crate::forces::contact_stiffness_block(surface, c.stiffness),
-                        damping: crate::forces::contact_damping_block(v[i] - velocity, surface, c.damping),
-                    });
+                let inside = |y: Vec3<R>| c.distance(center, y) < R::zero();
+                if !(inside(x[i]) || inside(x0[i] + v[i] * p.dt) || inside(x0[i] + v0[i] * p.dt)) {
+                    continue;
                 }
+                let surface = c.surface(center, x[i]);
+                let n = surface.normal;
+                let approach = (v[i] - velocity).dot(n);
+                let nn = crate::real::Mat3::outer(n, n);
+                let damping = if approach < R::zero() { nn * c.damping } else { crate::real::Mat3::zero() };
+                contacts.push(ContactTerms { vertex: i, stiffness: nn * c.stiffness, damping });
             }
         }
         LinearisedStep {

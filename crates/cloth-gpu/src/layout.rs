@@ -303,9 +303,9 @@ gpu_struct! {
 }
 
 impl GpuVbdSweep {
-    /// The blocks of every sweep of a substep, `COLOR_RANGE_STRIDE` bytes apart: sweep `k` (from
-    /// 1) at `(k − 1) COLOR_RANGE_STRIDE`, with its Chebyshev weight in `f32`, as the reference
-    /// computes it in `f32` (cloth_core::vbd::chebyshev_weight).
+    /// The blocks of every sweep of a substep, `COLOR_RANGE_STRIDE` bytes apart: sweep `k`, from
+    /// 1, at `(k − 1) COLOR_RANGE_STRIDE`, with its Chebyshev weight computed in `f32` as the
+    /// reference computes it (`cloth_core::vbd::chebyshev_weight`).
     pub fn blocks(solver: &cloth_core::solver::SolverSpec) -> Vec<u8> {
         let sweeps = solver.vbd_iterations.max(1) as usize;
         let mut bytes = vec![0u8; sweeps * COLOR_RANGE_STRIDE as usize];
