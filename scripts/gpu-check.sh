@@ -11,7 +11,8 @@
 #                at their scenes' own size on every backend, then the soak at a million substeps on
 #                each backend (SOAK_SECONDS each, default 200: XPBD's million substeps do not end
 #                in that; 0 skips the soak)
-#   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps
+#   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps;
+#                then semi-implicit Euler, backward Euler and VBD at 256² and 1024², 1 and 16 substeps
 #   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs (EFFECT_GRIDS,
 #                default 128,512), each collider kind of scenes/colliders.ron
 #                (COLLIDER_EFFECT_GRIDS, default 256), and self-collision on
@@ -78,6 +79,9 @@ if [[ " $checks " == *" bench "* ]]; then
   echo "== bench"
   "$CLOTH" bench --backends wgpu,vulkano --grids 32,128,512,1024,2048 --substeps 16,64,scaled --frames 20 \
     --csv "$OUT/bench.csv" 2>&1 | tee "$OUT/bench.txt"
+  echo "== bench: the implicit integrators at their default solver settings"
+  "$CLOTH" bench --backends wgpu,vulkano --grids 256,1024 --substeps 1,16 --integrators euler,backward-euler,vbd \
+    --frames 10 --repeats 3 --csv "$OUT/bench-implicit.csv" 2>&1 | tee "$OUT/bench-implicit.txt"
 fi
 
 if [[ " $checks " == *" effects "* ]]; then

@@ -29,6 +29,10 @@ pub struct BenchArgs {
     /// dt = 0.04/n (default 16,64,scaled; with `--effects`, one number, default the scene's own).
     #[arg(long, value_delimiter = ',')]
     substeps: Vec<StepRule>,
+    /// Integrators to time, comma-separated (euler, verlet, rk4, xpbd, backward-euler, vbd; the
+    /// implicit ones at their default solver settings).
+    #[arg(long, value_delimiter = ',', default_value = "euler", value_parser = crate::parse_integrator)]
+    integrators: Vec<cloth_core::Integrator>,
     /// Frames of each timing (after one warm-up frame), at least 1.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     frames: u32,
@@ -61,6 +65,7 @@ pub(crate) struct PlannedRow {
     backend: usize,
     n: u32,
     rule: StepRule,
+    integrator: cloth_core::Integrator,
     refused: Option<cloth_core::Problem>,
 }
 
@@ -151,11 +156,14 @@ pub(crate) fn plan(args: &BenchArgs) -> Result<Plan> {
         };
         for (k, backend) in chosen.iter().enumerate() {
             for &n in &args.grids {
-                for &rule in &rules {
-                    // The warm-up frame and the timed ones.
-                    let frames = args.frames.saturating_mul(args.repeats).saturating_add(1);
-                    let refused = plan.work.add(backend.name, &throughput::bench_scene(n, rule), frames).err();
-                    plan.rows.push(PlannedRow { backend: k, n, rule, refused });
+                for &integrator in &args.integrators {
+                    for &rule in &rules {
+                        // The warm-up frame and the timed ones.
+                        let frames = args.frames.saturating_mul(args.repeats).saturating_add(1);
+                        let scene = throughput::bench_scene_with(n, rule, integrator);
+                        let refused = plan.work.add(backend.name, &scene, frames).err();
+                        plan.rows.push(PlannedRow { backend: k, n, rule, integrator, refused });
+                    }
                 }
             }
         }
@@ -205,8 +213,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
         None => None,
     };
     out!(
-        "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10} {:>10} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
+        "{:<8} {:<14} {:>6} {:>9} {:>5} {:>5} {:>10} {:>10} {:>8} {:>10} {:>10} {:>9} {:>8} {:>8} {:>6}",
         "backend",
+        "integrator",
         "grid",
         "substeps",
         "fused",
@@ -230,16 +239,17 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let mut unavailable = vec![false; plan.backends.len()];
     for planned in &plan.rows {
         let (backend, n, rule) = (&plan.backends[planned.backend], planned.n, planned.rule);
+        let integrator = planned.integrator;
         bar.inc(1);
         if unavailable[planned.backend] {
             continue;
         }
-        bar.set_message(format!("{} {n}² {rule}", backend.name));
+        bar.set_message(format!("{} {n}² {rule} {}", backend.name, integrator.name()));
         if let Some(p) = &planned.refused {
             bar.suspend(|| out!("{:<8} {:>6} {rule:>9} refused: {p}", backend.name, format!("{n}²")))?;
             continue;
         }
-        let row = match throughput::measure(backend, &tuning, n, rule, args.frames, args.repeats) {
+        let row = match throughput::measure(backend, &tuning, n, (rule, integrator), args.frames, args.repeats) {
             Ok(row) => row,
             Err(SimError::Unavailable { reason, .. }) => {
                 bar.suspend(|| out!("{:<8} skipped: {reason}", backend.name))?;
@@ -260,8 +270,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
         };
         bar.suspend(|| {
             out!(
-                "{:<8} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>8} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
+                "{:<8} {:<14} {:>6} {:>9} {:>5} {:>5} {:>10.3e} {:>10} {:>8} {:>10.3} {:>10.3} {:>9.3} {:>8} {:>8} {:>6}",
                 row.backend,
+                row.integrator.name(),
                 format!("{n}²"),
                 row.substeps,
                 row.fused_substeps,
@@ -306,15 +317,16 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if let Some(path) = &args.csv {
         let b = bandwidth.as_ref().map(|b| b.bytes_per_s);
         let mut csv = String::from(
-            "backend,adapter,grid,step_rule,substeps,substep_dt_s,frames,repeats,gpu_ms_per_frame,gpu_ms_spread,\
+            "backend,adapter,integrator,grid,step_rule,substeps,substep_dt_s,frames,repeats,gpu_ms_per_frame,gpu_ms_spread,\
              cpu_ms_per_frame,wall_ms_per_frame,wall_ms_spread,vertex_substeps_per_s,ceiling_fraction,copy_bandwidth_bytes_per_s,\
              submissions_per_frame,host_waits_per_frame,finite,fused_substeps,state_bytes_per_vertex\n",
         );
         for r in &rows {
             csv += &format!(
-                "{},\"{}\",{},{},{},{:.6e},{},{},{},{},{:.6},{:.6},{:.6},{:.6e},{},{},{:.3},{:.3},{},{},{}\n",
+                "{},\"{}\",{},{},{},{},{:.6e},{},{},{},{},{:.6},{:.6},{:.6},{:.6e},{},{},{:.3},{:.3},{},{},{}\n",
                 r.backend,
                 r.adapter.replace('"', "'"),
+                r.integrator.name(),
                 r.grid,
                 r.rule,
                 r.substeps,

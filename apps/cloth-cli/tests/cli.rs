@@ -277,6 +277,10 @@ fn study_accuracy_writes_csv_plot_and_report_where_higher_order_is_more_accurate
         "0.1",
         "--substeps",
         "16,32",
+        // The four integrators with a theoretical order (the implicit ones cost this test's
+        // lavapipe time three times over and add nothing to what it checks).
+        "--integrators",
+        "euler,verlet,rk4,xpbd",
         "--backends",
         "cpu-f64,wgpu",
         "--csv",
@@ -640,4 +644,30 @@ fn outputs_are_checked_first_and_never_left_half_written() {
     names.sort();
     assert_eq!(names, ["accuracy.csv", "accuracy.png", "accuracy.svg", "taken.csv"]);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `cloth run --integrator` takes the implicit integrators by their short names, and the report
+/// says what their solvers spent: backward Euler's Newton and CG iterations, VBD's sweeps (the
+/// scene's default 10 a substep).
+#[test]
+fn run_reports_what_the_implicit_solvers_spent() {
+    for name in ["backward-euler", "vbd"] {
+        let v = json(&["run", "--integrator", name, "--grid", "8x8", "--substeps", "4", "--frames", "3", "--json"]);
+        assert_eq!(v["integrator"], name);
+        let spent = &v["solver_iterations"];
+        assert_eq!(spent["substeps"], 12, "{name}: {spent}");
+        if name == "vbd" {
+            assert_eq!(spent["vbd"], 120, "{name}: {spent}");
+        } else {
+            assert_eq!(spent["newton"], 12, "{name}: one Newton iteration a substep: {spent}");
+            let cg = spent["cg"].as_u64().unwrap();
+            assert!(cg >= 12 && cg <= 12 * 50, "{name}: {spent}");
+        }
+    }
+    let out = cloth(&["run", "--integrator", "implicit-euler", "--frames", "1"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("backward-euler") && stderr.contains("vbd"), "the error lists the names: {stderr}");
+    let plain = json(&["run", "--grid", "8x8", "--frames", "1", "--json"]);
+    assert!(plain["solver_iterations"].is_null(), "semi-implicit Euler has no solver");
 }

@@ -435,6 +435,7 @@ impl InspectorApp {
                     max_penetration_m: diagnostics.max_penetration_m.max(previous),
                     self_intersections,
                     candidate_lists: diagnostics.candidate_lists,
+                    solver: diagnostics.solver,
                 });
                 if state.non_finite_count() > 0 {
                     self.state.playing = false;

@@ -18,6 +18,8 @@ pub struct Sample {
     pub self_intersections: Option<usize>,
     /// With `SelfCollision` on a GPU backend, how its candidate lists fared since it was created.
     pub candidate_lists: Option<cloth_core::self_collision::CandidateListStats>,
+    /// With an implicit integrator, what its solver spent since the backend was created.
+    pub solver: Option<cloth_core::solver::SolverIterations>,
 }
 
 /// Rolling history and the latest timings.

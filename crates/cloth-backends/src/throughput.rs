@@ -68,9 +68,14 @@ impl std::fmt::Display for StepRule {
 pub const BENCH_VERTEX_MASS_KG: f64 = 0.01;
 
 /// The benchmark's scene: the default drape on an `n × n` grid with [`BENCH_VERTEX_MASS_KG`] per
-/// vertex, with the substeps of `rule`.
+/// vertex, with the substeps of `rule`, under semi-implicit Euler.
 pub fn bench_scene(n: u32, rule: StepRule) -> Scene {
-    let mut scene = Scene::default();
+    bench_scene_with(n, rule, cloth_core::Integrator::SemiImplicitEuler)
+}
+
+/// [`bench_scene`] under `integrator` (the implicit ones with their default solver settings).
+pub fn bench_scene_with(n: u32, rule: StepRule, integrator: cloth_core::Integrator) -> Scene {
+    let mut scene = Scene { integrator, ..Scene::default() };
     scene.cloth.resolution = [n, n];
     scene.cloth.mass = cloth_core::scene::Mass::PerVertex(BENCH_VERTEX_MASS_KG);
     let substeps = match rule {
@@ -92,6 +97,8 @@ pub struct ThroughputRow {
     pub grid: u32,
     /// How the substeps were chosen.
     pub rule: StepRule,
+    /// The time integrator.
+    pub integrator: cloth_core::Integrator,
     /// Substeps per frame.
     pub substeps: u32,
     /// Substep length, s.
@@ -152,7 +159,7 @@ pub fn measure(
     backend: &Backend,
     tuning: &cloth_gpu::GpuTuning,
     n: u32,
-    rule: StepRule,
+    (rule, integrator): (StepRule, cloth_core::Integrator),
     frames: u32,
     repeats: u32,
 ) -> Result<ThroughputRow, SimError> {
@@ -161,7 +168,7 @@ pub fn measure(
             return Err(SimError::InvalidOption { option, value: "0".to_string(), expected: "at least 1".to_string() });
         }
     }
-    let scene = bench_scene(n, rule);
+    let scene = bench_scene_with(n, rule, integrator);
     let mut sim = (backend.create)(&scene, tuning)?;
     sim.advance(1)?;
     sim.diagnostics()?;
@@ -204,6 +211,7 @@ pub fn measure(
         adapter: sim.adapter_name(),
         grid: n,
         rule,
+        integrator,
         substeps: scene.substeps_per_frame(),
         substep_dt: scene.substep_dt(),
         frames,
@@ -249,7 +257,15 @@ mod tests {
     #[test]
     fn a_cpu_row_counts_the_work_and_no_device_traffic() {
         let cpu = crate::find("cpu").unwrap();
-        let row = measure(&cpu, &Default::default(), 16, StepRule::Fixed(4), 3, 4).unwrap();
+        let row = measure(
+            &cpu,
+            &Default::default(),
+            16,
+            (StepRule::Fixed(4), cloth_core::Integrator::SemiImplicitEuler),
+            3,
+            4,
+        )
+        .unwrap();
         assert_eq!((row.grid, row.substeps, row.frames, row.repeats), (16, 4, 3, 4));
         assert!(row.wall_ms_spread >= 0.0 && row.gpu_ms_spread.is_none());
         assert!(row.finite && row.gpu_ms_per_frame.is_none());

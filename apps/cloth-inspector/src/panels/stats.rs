@@ -43,6 +43,7 @@ pub fn show(ui: &mut egui::Ui, stats: &Stats, scene: &Scene) {
         )),
     }
     .on_hover_text("Counted exactly on the last sampled state (docs/model.md, Self-intersections)");
+    solver_iterations(ui, stats);
     if let Some(lists) = stats.samples.back().and_then(|s| s.candidate_lists) {
         let share = if lists.checks > 0 { 100.0 * lists.rebuilds as f64 / lists.checks as f64 } else { 0.0 };
         ui.label(format!(
@@ -63,4 +64,31 @@ pub fn show(ui: &mut egui::Ui, stats: &Stats, scene: &Scene) {
     Plot::new("penetration").height(120.0).show(ui, |plot| {
         plot.line(Line::new("max penetration", series(|s| s.max_penetration_m * 1e3)));
     });
+}
+
+/// What the implicit integrator's solver spent between the last two samples, per substep: the
+/// difference of the two readings (the backend counts since its creation).
+fn solver_iterations(ui: &mut egui::Ui, stats: &crate::stats::Stats) {
+    let mut recent = stats.samples.iter().rev().filter_map(|s| s.solver);
+    let (Some(last), Some(before)) = (recent.next(), recent.next()) else { return };
+    if last.substeps <= before.substeps {
+        return;
+    }
+    let spent = last.since(&before);
+    let per = |n: u64| n as f64 / spent.substeps as f64;
+    let text = if spent.vbd > 0 {
+        format!("Solver: {:.0} VBD sweeps a substep", per(spent.vbd))
+    } else {
+        format!(
+            "Solver: {:.1} Newton and {:.1} CG iterations a substep ({:.1} a solve; at most {} in one solve so far)",
+            per(spent.newton),
+            per(spent.cg),
+            spent.cg_per_solve(),
+            last.cg_most
+        )
+    };
+    ui.label(text).on_hover_text(
+        "The implicit integrators' iterations over the last frame shown (the scene's solver field sets their limits; \
+         docs/model.md, The implicit integrators)",
+    );
 }
