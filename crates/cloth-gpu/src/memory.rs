@@ -42,11 +42,21 @@ impl MemoryEstimate {
             Integrator::Xpbd => {
                 (20 * springs + 4 * vertices + 2 * COLOR_COUNT as u128 * COLOR_RANGE_STRIDE as u128, 16 * springs)
             }
-            // The inertial predictions, the last substep's velocities, Chebyshev's history.
-            Integrator::Vbd => (4 * state, 2 * state),
-            // The start state, the iterate, Δv, and CG's r, z, p, A p, and the preconditioner's
-            // 3 × 3 blocks (three vec4 a vertex).
-            Integrator::BackwardEuler => (10 * state, 3 * state),
+            // The inertial predictions, the last substep's velocities, Chebyshev's history (a
+            // 16-byte placeholder without it), the sweeps' uniform blocks.
+            Integrator::Vbd => {
+                let history = if scene.solver.chebyshev_rho > 0.0 { 2 * state } else { 16 };
+                let sweeps = COLOR_RANGE_STRIDE as u128 * u128::from(scene.solver.vbd_iterations.max(1));
+                (2 * state + history + sweeps, state.max(history))
+            }
+            // CG's four vectors and the five blocks a vertex, the partial sums (three vec2 a
+            // workgroup of the default 256 invocations), the counters, the iterations' steps and
+            // uniform blocks.
+            Integrator::BackwardEuler => {
+                let iterations = u128::from(scene.solver.cg_max_iterations.max(1));
+                let partials = 24 * vertices.div_ceil(256);
+                (9 * state + partials + 32 + 8 * (iterations + 2) + COLOR_RANGE_STRIDE as u128 * iterations, 5 * state)
+            }
         };
         // The colliders' uniform block, and 4 bytes a distance-field sample of each mesh.
         let samples: u128 = (scene.colliders.iter())
