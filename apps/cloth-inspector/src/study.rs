@@ -178,7 +178,12 @@ mod tests {
         let scene = Scene::load(&crate::panels::scene::scenes_dir().join("hanging.ron")).unwrap();
         quick_study(&scene, "cpu", &Default::default(), &progress);
         let p = progress.lock().unwrap();
-        assert_eq!((p.done, p.total, p.error.clone()), (p.total, 13, None));
+        // The reference run, then every integrator at each of the three substep counts.
+        assert_eq!((p.done, p.total, p.error.clone()), (p.total, 1 + 3 * Integrator::ALL.len(), None));
+        for integrator in Integrator::ALL {
+            let series = format!("cpu {}", integrator.name());
+            assert!(p.points.iter().any(|q| q.series == series), "{series} missing from {:?}", p.points);
+        }
         let error = |series: &str| p.points.iter().find(|q| q.series == series).map(|q| q.rms_error_m).unwrap();
         assert!(error("cpu rk4") < error("cpu verlet") && error("cpu verlet") < error("cpu euler"), "{:?}", p.points);
     }
