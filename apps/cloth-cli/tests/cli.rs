@@ -271,6 +271,7 @@ fn study_accuracy_writes_csv_plot_and_report_where_higher_order_is_more_accurate
     let out = cloth(&[
         "study",
         "accuracy",
+        "scenes/hanging.ron",
         "--grid",
         "6x6",
         "--duration",
@@ -325,7 +326,9 @@ fn study_accuracy_writes_csv_plot_and_report_where_higher_order_is_more_accurate
     assert!(std::fs::read_to_string(csv.with_extension("svg")).unwrap().contains("<svg"));
     let md = std::fs::read_to_string(&report).unwrap();
     for section in [
-        "## Which integrator for an error budget",
+        "## Which integrator and step, for an error budget and a frame-time budget",
+        "## Largest step with a bounded error",
+        "## Which integrator for an error budget alone",
         "## Measured order of accuracy",
         "## Largest stable step",
         "## Every run",
@@ -336,7 +339,71 @@ fn study_accuracy_writes_csv_plot_and_report_where_higher_order_is_more_accurate
     for copied in ["accuracy.png", "accuracy.svg", "accuracy.csv"] {
         assert!(report.parent().unwrap().join(copied).exists(), "{copied} beside the report");
     }
-    assert!(md.contains("study accuracy --grid 6x6"), "the report names the command that made it");
+    assert!(md.contains("study accuracy scenes/hanging.ron --grid 6x6"), "the report names the command that made it");
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// The study's default scenes (the hanging cloth, the drape, the stiff drape) at 4 × 4 on the f64
+/// CPU: one CSV with a scene column, the explicit integrator diverging at one substep a frame on
+/// the stiff drape where backward Euler and VBD stay finite and report their iterations, and the
+/// report's per-scene two-budget tables with their generated discussion.
+#[test]
+fn study_accuracy_compares_the_default_scenes_and_the_implicit_integrators() {
+    let dir = std::env::temp_dir().join(format!("cloth-study-scenes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (csv, report) = (dir.join("accuracy.csv"), dir.join("accuracy.md"));
+    let out = cloth(&[
+        "study",
+        "accuracy",
+        "--grid",
+        "4x4",
+        "--duration",
+        "0.1",
+        "--substeps",
+        "1,8",
+        "--integrators",
+        "euler,xpbd,backward-euler,vbd",
+        "--backends",
+        "cpu-f64",
+        "--no-bisection",
+        "--frame-budgets",
+        "0.5,100",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 3 * 4 * 2, "3 scenes x 4 integrators x 2 substep counts:\n{text}");
+    let row = |scene: &str, method: &str, n: &str| {
+        rows.iter()
+            .find(|r| r[column("scene")] == scene && r[1] == method && r[2] == n)
+            .unwrap_or_else(|| panic!("no {scene} {method} {n}:\n{text}"))
+    };
+    assert_eq!(row("stiff drape", "euler", "1")[column("diverged")], "true", "{text}");
+    for method in ["backward-euler", "vbd"] {
+        let r = row("stiff drape", method, "1");
+        assert_eq!(r[column("diverged")], "false", "{method}: {r:?}");
+        let iterations: f64 = r[column("solver_iterations_per_substep")].parse().unwrap();
+        assert!(iterations >= 1.0, "{method} spends its solver's iterations: {r:?}");
+        let dissipated: f64 = r[column("energy_dissipated_j")].parse().unwrap();
+        assert!(dissipated.is_finite(), "{r:?}");
+    }
+    assert_eq!(row("drape", "euler", "8")[column("solver_iterations_per_substep")], "", "explicit: no solver");
+    let md = std::fs::read_to_string(&report).unwrap();
+    for scene in ["### hanging", "### drape", "### stiff drape"] {
+        assert!(
+            md.matches(scene).count() >= 3,
+            "{scene} has its two-budget, bounded-step and one-substep tables:\n{md}"
+        );
+    }
+    assert!(md.contains("≤ 0.5 ms / frame") && md.contains("≤ 100 ms / frame"), "the frame budgets asked for");
+    assert!(md.contains("Within 1e-2 m the largest step is"), "the discussion is generated:\n{md}");
+    assert!(md.contains("At 1 substep a frame euler diverges."), "the stiff drape's divergence is said:\n{md}");
     let _ = std::fs::remove_dir_all(dir);
 }
 

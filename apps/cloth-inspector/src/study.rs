@@ -139,21 +139,45 @@ pub fn last_study_csv() -> Option<PathBuf> {
     [Path::new("out/accuracy.csv").to_path_buf(), docs].into_iter().find(|p| p.is_file())
 }
 
-/// Reads the points of a CSV written by `cloth study accuracy` (finite rows; the cost is column
-/// 11, `cost_ms_per_simulated_s`). A file that does not end its last row, or a row with fewer
-/// columns than the header, is refused whole rather than shown in part: it is not a complete
-/// study.
-pub fn load_csv(path: &Path) -> Result<Vec<StudyPoint>, String> {
+/// A study's CSV as the panel shows it.
+#[derive(Debug)]
+pub struct LoadedStudy {
+    /// The scene the points are of: the file's first (a study of several scenes writes them in
+    /// turn); `None` for a CSV without a `scene` column.
+    pub scene: Option<String>,
+    pub points: Vec<StudyPoint>,
+}
+
+/// Reads the points of a CSV written by `cloth study accuracy`: the rows of its first scene that
+/// neither are non-finite nor diverged (the cost is column 11, `cost_ms_per_simulated_s`; `scene`
+/// and `diverged` are found by their header names). A file that does not end its last row, or a
+/// row with fewer columns than the header, is refused whole rather than shown in part: it is not
+/// a complete study.
+pub fn load_csv(path: &Path) -> Result<LoadedStudy, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let columns = text.lines().next().map_or(0, |header| header.split(',').count()).max(11);
+    let header: Vec<&str> = text.lines().next().map_or(Vec::new(), |h| h.split(',').collect());
+    let columns = header.len().max(11);
+    let scene_column = header.iter().position(|h| *h == "scene");
+    let diverged_column = header.iter().position(|h| *h == "diverged");
     if !text.ends_with('\n') {
         return Err(format!("{} is incomplete (its last row is cut): not shown", path.display()));
     }
     let mut points = Vec::new();
+    let mut scene: Option<String> = None;
     for (n, line) in text.lines().enumerate().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         if f.len() < columns {
             return Err(format!("{} line {}: expected {columns} columns, found {}", path.display(), n + 1, f.len()));
+        }
+        if let Some(c) = scene_column {
+            match &scene {
+                None => scene = Some(f[c].to_string()),
+                Some(first) if first != f[c] => continue,
+                Some(_) => {}
+            }
+        }
+        if diverged_column.is_some_and(|c| f[c] == "true") {
+            continue;
         }
         let number = |s: &str| s.parse::<f64>().map_err(|e| format!("{} line {}: '{s}': {e}", path.display(), n + 1));
         let (error, cost) = (number(f[4])?, number(f[10])?);
@@ -165,7 +189,7 @@ pub fn load_csv(path: &Path) -> Result<Vec<StudyPoint>, String> {
             });
         }
     }
-    Ok(points)
+    Ok(LoadedStudy { scene, points })
 }
 
 #[cfg(test)]
@@ -216,9 +240,30 @@ mod tests {
     }
 
     #[test]
+    fn a_study_of_several_scenes_shows_its_first_without_the_diverged_runs() {
+        let header = "backend,integrator,substeps_per_frame,dt_s,rms_error_m,max_error_m,energy_drift,max_strain,\
+                      max_penetration_m,finite,cost_ms_per_simulated_s,cost_clock,wall_ms_per_simulated_s,\
+                      gpu_ms_per_simulated_s,scene,energy_dissipated_j,solver_iterations_per_substep,diverged";
+        let rows = [
+            "cpu,euler,1,1e-2,3e5,1e6,1e9,40,0,true,1.0,wall,1.0,,hanging,-1e9,,true",
+            "cpu,euler,8,2e-3,1e-3,2e-3,0,0.01,0,true,2.0,wall,2.0,,hanging,0.1,,false",
+            "cpu,vbd,8,2e-3,2e-3,3e-3,0,0.01,0,true,3.0,wall,3.0,,hanging,0.2,10.00,false",
+            "cpu,euler,8,2e-3,5e-3,6e-3,0,0.01,0,true,2.5,wall,2.5,,drape,0.1,,false",
+        ];
+        let path = std::env::temp_dir().join(format!("cloth-scenes-study-{}.csv", std::process::id()));
+        std::fs::write(&path, format!("{header}\n{}\n", rows.join("\n"))).unwrap();
+        let study = load_csv(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(study.scene.as_deref(), Some("hanging"));
+        let errors: Vec<f64> = study.points.iter().map(|p| p.rms_error_m).collect();
+        assert_eq!(errors, [1e-3, 2e-3], "the hanging cloth's two runs that did not diverge");
+    }
+
+    #[test]
     fn the_committed_study_csv_loads() {
         let path = crate::panels::scene::scenes_dir().join("../docs/accuracy.csv");
-        let points = load_csv(&path).unwrap();
+        let study = load_csv(&path).unwrap();
+        let points = &study.points;
         assert!(points.iter().any(|p| p.series.ends_with("xpbd")), "{points:?}");
         assert!(points.iter().all(|p| p.ms_per_simulated_s > 0.0 && p.rms_error_m > 0.0));
     }

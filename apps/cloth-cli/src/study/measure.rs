@@ -44,6 +44,8 @@ pub fn with(base: &Scene, integrator: Integrator, substeps: u32) -> Scene {
 /// One row of the study.
 #[derive(Clone, Debug)]
 pub struct Row {
+    /// The scene's name.
+    pub scene: String,
     pub backend: String,
     pub integrator: Integrator,
     pub substeps: u32,
@@ -55,12 +57,21 @@ pub struct Row {
     pub max_error_m: f64,
     /// (final total energy − the reference's) / |initial total energy|.
     pub energy_drift: f64,
+    /// Energy the method dissipated beyond the reference's, J: the reference's final total
+    /// energy minus the run's (negative when the run ends with more).
+    pub energy_dissipated_j: f64,
+    /// Solver iterations per substep, averaged over the run: conjugate-gradient iterations for
+    /// backward Euler (over all its Newton iterations), sweeps for VBD; `None` for the others.
+    pub solver_iterations_per_substep: Option<f64>,
     /// Largest |L/L0 − 1| over the springs at the end.
     pub max_strain: f64,
     /// Deepest penetration into a sphere over the run, m.
     pub max_penetration_m: f64,
     /// Every position and velocity finite at the end.
     pub finite: bool,
+    /// Not finite, or the RMS error larger than the cloth's diagonal: the run blew up (an
+    /// explicit integrator beyond its stable step ends with finite but meaningless positions).
+    pub diverged: bool,
     /// Wall-clock time per simulated second, ms: from the first advance to the read-back.
     pub wall_ms_per_simulated_s: f64,
     /// GPU time per simulated second from timestamp queries, ms (GPU backends that have them).
@@ -70,7 +81,8 @@ pub struct Row {
 impl Row {
     pub const CSV_HEADER: &str = "backend,integrator,substeps_per_frame,dt_s,rms_error_m,max_error_m,energy_drift,\
                                   max_strain,max_penetration_m,finite,cost_ms_per_simulated_s,cost_clock,\
-                                  wall_ms_per_simulated_s,gpu_ms_per_simulated_s";
+                                  wall_ms_per_simulated_s,gpu_ms_per_simulated_s,scene,energy_dissipated_j,\
+                                  solver_iterations_per_substep,diverged";
 
     /// The cost the study plots: GPU time where measured, wall-clock time otherwise.
     pub fn cost_ms(&self) -> f64 {
@@ -84,12 +96,12 @@ impl Row {
 
     /// Whether the run is usable on an error-against-cost plot.
     pub fn plottable(&self) -> bool {
-        self.finite && self.rms_error_m.is_finite() && self.rms_error_m > 0.0 && self.cost_ms() > 0.0
+        !self.diverged && self.rms_error_m.is_finite() && self.rms_error_m > 0.0 && self.cost_ms() > 0.0
     }
 
     pub fn csv(&self) -> String {
         format!(
-            "{},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{},{:.4},{},{:.4},{}",
+            "{},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{},{:.4},{},{:.4},{},{},{:.6e},{},{}",
             self.backend,
             self.integrator.name(),
             self.substeps,
@@ -103,14 +115,18 @@ impl Row {
             self.cost_ms(),
             self.cost_clock(),
             self.wall_ms_per_simulated_s,
-            self.gpu_ms_per_simulated_s.map(|g| format!("{g:.4}")).unwrap_or_default()
+            self.gpu_ms_per_simulated_s.map(|g| format!("{g:.4}")).unwrap_or_default(),
+            self.scene.replace(',', ";"),
+            self.energy_dissipated_j,
+            self.solver_iterations_per_substep.map(|n| format!("{n:.2}")).unwrap_or_default(),
+            self.diverged
         )
     }
 
     pub fn print(&self) -> std::io::Result<()> {
         let gpu = self.gpu_ms_per_simulated_s.map(|g| format!("{g:.2}")).unwrap_or_else(|| "-".into());
         out!(
-            "{:<8} {:<7} {:>8} {:>10.3e} {:>11.3e} {:>11.3e} {:>12.3e} {:>10.3e} {:>11.3e} {:>7} {:>11.2} {:>11}",
+            "{:<8} {:<14} {:>8} {:>10.3e} {:>11.3e} {:>11.3e} {:>12.3e} {:>10.3e} {:>11.3e} {:>7} {:>11.2} {:>11} {:>8}",
             self.backend,
             self.integrator.name(),
             self.substeps,
@@ -122,14 +138,15 @@ impl Row {
             self.max_penetration_m,
             self.finite,
             self.wall_ms_per_simulated_s,
-            gpu
+            gpu,
+            self.solver_iterations_per_substep.map(|n| format!("{n:.1}")).unwrap_or_else(|| "-".into())
         )
     }
 }
 
 pub fn print_header() -> std::io::Result<()> {
     out!(
-        "{:<8} {:<7} {:>8} {:>10} {:>11} {:>11} {:>12} {:>10} {:>11} {:>7} {:>11} {:>11}",
+        "{:<8} {:<14} {:>8} {:>10} {:>11} {:>11} {:>12} {:>10} {:>11} {:>7} {:>11} {:>11} {:>8}",
         "backend",
         "method",
         "substeps",
@@ -141,7 +158,8 @@ pub fn print_header() -> std::io::Result<()> {
         "max pen (m)",
         "finite",
         "wall ms/s",
-        "GPU ms/s"
+        "GPU ms/s",
+        "iter/sub"
     )
 }
 
@@ -202,7 +220,13 @@ pub fn run(
     if timed {
         gpu_seconds += sim.take_gpu_seconds()?.unwrap_or(0.0);
     }
-    let penetration = sim.diagnostics()?.max_penetration_m;
+    let diagnostics = sim.diagnostics()?;
+    let penetration = diagnostics.max_penetration_m;
+    let solver_iterations_per_substep = diagnostics.solver.filter(|s| s.substeps > 0).and_then(|s| match integrator {
+        Integrator::BackwardEuler => Some(s.cg as f64 / s.substeps as f64),
+        Integrator::Vbd => Some(s.vbd as f64 / s.substeps as f64),
+        _ => None,
+    });
     let positions: Vec<[f64; 3]> = match &f64_sim {
         Some(f64_sim) => f64_sim.positions().iter().map(|p| p.to_f64()).collect(),
         None => state.positions.iter().map(|p| p.map(f64::from)).collect(),
@@ -217,17 +241,23 @@ pub fn run(
     let max_error =
         errors.iter().copied().fold(0.0, |a: f64, e| if e.is_nan() || a.is_nan() { f64::NAN } else { a.max(e) });
     let simulated_s = frames as f64 * base.time.frame_dt;
+    let energy = Energy::of(&reference.model, &state).total();
+    let finite = state.non_finite_count() == 0;
     let row = Row {
+        scene: base.name.clone(),
         backend: backend.name.to_string(),
         integrator,
         substeps,
         dt: scene.substep_dt(),
         rms_error_m: rms,
         max_error_m: max_error,
-        energy_drift: (Energy::of(&reference.model, &state).total() - reference.energy_j) / reference.energy_scale_j,
+        energy_drift: (energy - reference.energy_j) / reference.energy_scale_j,
+        energy_dissipated_j: reference.energy_j - energy,
+        solver_iterations_per_substep,
         max_strain: reference.model.max_strain(&state),
         max_penetration_m: penetration,
-        finite: state.non_finite_count() == 0,
+        finite,
+        diverged: !finite || rms.is_nan() || rms > base.cloth.size[0].hypot(base.cloth.size[1]),
         wall_ms_per_simulated_s: seconds * 1e3 / simulated_s,
         gpu_ms_per_simulated_s: timed.then(|| gpu_seconds * 1e3 / simulated_s),
     };

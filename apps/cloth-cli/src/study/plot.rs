@@ -1,7 +1,7 @@
-//! The study's picture: RMS error against cost, log–log, one curve per backend and integrator
-//! (colour: integrator; marker: backend, in the order given: filled circle, open circle,
-//! triangle, cross; f64 lighter), each backend's Pareto front circled. Drawn once for SVG
-//! and once for PNG.
+//! The study's picture: one panel per scene, stacked, each RMS error against cost, log–log, one
+//! curve per backend and integrator (colour: integrator; marker: backend, in the order given:
+//! filled circle, open circle, triangle, cross; f64 lighter), each backend's Pareto front
+//! circled. Drawn once for SVG and once for PNG.
 
 use std::path::Path;
 
@@ -12,8 +12,8 @@ use plotters::prelude::*;
 
 use super::{Row, Study};
 
-/// Picture size in pixels.
-const SIZE: (u32, u32) = (1000, 650);
+/// Size of one scene's panel in pixels.
+const PANEL: (u32, u32) = (1000, 650);
 
 /// Indices of the rows on `backend`'s Pareto front: no other finite row of that backend is both
 /// cheaper and more accurate.
@@ -89,20 +89,34 @@ pub(crate) fn register_font() -> Result<()> {
     if ok { Ok(()) } else { Err(anyhow!("the plot font (Ubuntu Light) could not be loaded")) }
 }
 
-/// Writes the plot as SVG and PNG.
-pub fn write(study: &Study, svg: &Path, png: &Path) -> Result<()> {
+/// Writes the plot, a panel per scene, as SVG and PNG.
+pub fn write(studies: &[Study], svg: &Path, png: &Path) -> Result<()> {
     register_font()?;
+    let size = (PANEL.0, PANEL.1 * studies.len().max(1) as u32);
     let mut text = String::new();
-    draw(SVGBackend::with_string(&mut text, SIZE).into_drawing_area(), study)
+    draw_all(SVGBackend::with_string(&mut text, size).into_drawing_area(), studies)
         .with_context(|| format!("cannot draw {}", svg.display()))?;
     cloth_backends::output::write_atomically(svg, text.as_bytes())?;
-    let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-    draw(BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area(), study)
+    let mut pixels = vec![0u8; (size.0 * size.1 * 3) as usize];
+    draw_all(BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area(), studies)
         .with_context(|| format!("cannot draw {}", png.display()))?;
     Ok(cloth_backends::output::write_atomically(
         png,
-        &crate::picture::encode_png(&pixels, SIZE.0, SIZE.1, png::ColorType::Rgb)?,
+        &crate::picture::encode_png(&pixels, size.0, size.1, png::ColorType::Rgb)?,
     )?)
+}
+
+fn draw_all<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, studies: &[Study]) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{e}");
+    root.fill(&WHITE).map_err(err)?;
+    for (panel, study) in root.split_evenly((studies.len().max(1), 1)).into_iter().zip(studies) {
+        draw(panel, study)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
 }
 
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, study: &Study) -> Result<()>
@@ -110,7 +124,6 @@ where
     DB::ErrorType: 'static,
 {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{e}");
-    root.fill(&WHITE).map_err(err)?;
     let rows = &study.rows;
     let points: Vec<&Row> = rows.iter().filter(|r| r.plottable()).collect();
     let caption = format!(
@@ -122,7 +135,6 @@ where
     );
     if points.is_empty() {
         root.titled(&caption, ("sans-serif", 20)).map_err(err)?;
-        root.present().map_err(err)?;
         return Ok(());
     }
     let (x0, x1) = points.iter().fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.cost_ms()), b.max(r.cost_ms())));
@@ -210,6 +222,5 @@ where
         .position(SeriesLabelPosition::LowerLeft)
         .draw()
         .map_err(err)?;
-    root.present().map_err(err)?;
     Ok(())
 }

@@ -23,9 +23,12 @@ impl StudyPanel {
     fn load_last(&mut self) {
         match crate::study::last_study_csv() {
             Some(path) => match crate::study::load_csv(&path) {
-                Ok(points) => {
-                    self.points = points;
-                    self.message = Some(format!("the last study: {}", path.display()));
+                Ok(study) => {
+                    self.points = study.points;
+                    self.message = Some(match study.scene {
+                        Some(scene) => format!("the last study: {} (its first scene, {scene})", path.display()),
+                        None => format!("the last study: {}", path.display()),
+                    });
                 }
                 Err(e) => self.message = Some(e),
             },
