@@ -3,6 +3,10 @@
 //! The reference stepper is generic over [`Real`] so that the same code runs in
 //! `f32` (to compare bit-for-bit-ish with the GPU) and in `f64` (a high-precision
 //! oracle). [`Vec3`] is deliberately tiny: only the operations the force model uses.
+//!
+//! Every operation is `#[inline]`: each is a few instructions, and a lightly optimised build
+//! (the test profile) otherwise keeps one of the two precisions' copies as calls, which made the
+//! f64 reference several times slower than the f32 one.
 
 use std::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 
@@ -11,10 +15,12 @@ pub trait Real:
     num_traits::Float + num_traits::FromPrimitive + Send + Sync + std::fmt::Debug + Default + 'static
 {
     /// Converts from `f64` (scene values are stored in `f64`).
+    #[inline]
     fn of(value: f64) -> Self {
         Self::from_f64(value).unwrap_or_else(Self::nan)
     }
     /// Converts to `f64` for reporting.
+    #[inline]
     fn to_f64_lossy(self) -> f64 {
         num_traits::ToPrimitive::to_f64(&self).unwrap_or(f64::NAN)
     }
@@ -35,38 +41,47 @@ pub struct Vec3<R> {
 
 impl<R: Real> Vec3<R> {
     /// The zero vector.
+    #[inline]
     pub fn zero() -> Self {
         Self::new(R::zero(), R::zero(), R::zero())
     }
     /// Builds a vector from its components.
+    #[inline]
     pub fn new(x: R, y: R, z: R) -> Self {
         Self { x, y, z }
     }
     /// Converts an `[f64; 3]` (scene units) to this precision.
+    #[inline]
     pub fn from_f64(v: [f64; 3]) -> Self {
         Self::new(R::of(v[0]), R::of(v[1]), R::of(v[2]))
     }
     /// Converts an `[f32; 3]` (GPU layout) to this precision.
+    #[inline]
     pub fn from_f32(v: [f32; 3]) -> Self {
         Self::from_f64([v[0] as f64, v[1] as f64, v[2] as f64])
     }
     /// Components as `f64`.
+    #[inline]
     pub fn to_f64(self) -> [f64; 3] {
         [self.x.to_f64_lossy(), self.y.to_f64_lossy(), self.z.to_f64_lossy()]
     }
     /// Cross product `a × b`.
+    #[inline]
     pub fn cross(self, o: Self) -> Self {
         Self::new(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
     }
     /// Dot product `a · b`.
+    #[inline]
     pub fn dot(self, other: Self) -> R {
         self.x * other.x + self.y * other.y + self.z * other.z
     }
     /// Euclidean length `|a|`.
+    #[inline]
     pub fn length(self) -> R {
         self.dot(self).sqrt()
     }
     /// `true` when every component is finite.
+    #[inline]
     pub fn is_finite(self) -> bool {
         self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
     }
@@ -74,34 +89,40 @@ impl<R: Real> Vec3<R> {
 
 impl<R: Real> Add for Vec3<R> {
     type Output = Self;
+    #[inline]
     fn add(self, o: Self) -> Self {
         Self::new(self.x + o.x, self.y + o.y, self.z + o.z)
     }
 }
 impl<R: Real> Sub for Vec3<R> {
     type Output = Self;
+    #[inline]
     fn sub(self, o: Self) -> Self {
         Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
     }
 }
 impl<R: Real> Neg for Vec3<R> {
     type Output = Self;
+    #[inline]
     fn neg(self) -> Self {
         Self::new(-self.x, -self.y, -self.z)
     }
 }
 impl<R: Real> Mul<R> for Vec3<R> {
     type Output = Self;
+    #[inline]
     fn mul(self, s: R) -> Self {
         Self::new(self.x * s, self.y * s, self.z * s)
     }
 }
 impl<R: Real> AddAssign for Vec3<R> {
+    #[inline]
     fn add_assign(&mut self, o: Self) {
         *self = *self + o;
     }
 }
 impl<R: Real> SubAssign for Vec3<R> {
+    #[inline]
     fn sub_assign(&mut self, o: Self) {
         *self = *self - o;
     }
@@ -117,33 +138,39 @@ pub struct Mat3<R> {
 
 impl<R: Real> Mat3<R> {
     /// The zero matrix.
+    #[inline]
     pub fn zero() -> Self {
         Self { rows: [Vec3::zero(); 3] }
     }
 
     /// The identity.
+    #[inline]
     pub fn identity() -> Self {
         let (o, l) = (R::zero(), R::one());
         Self { rows: [Vec3::new(l, o, o), Vec3::new(o, l, o), Vec3::new(o, o, l)] }
     }
 
     /// The outer product `a bᵀ`.
+    #[inline]
     pub fn outer(a: Vec3<R>, b: Vec3<R>) -> Self {
         Self { rows: [b * a.x, b * a.y, b * a.z] }
     }
 
     /// `M v`.
+    #[inline]
     pub fn mul_vec(&self, v: Vec3<R>) -> Vec3<R> {
         Vec3::new(self.rows[0].dot(v), self.rows[1].dot(v), self.rows[2].dot(v))
     }
 
     /// The determinant.
+    #[inline]
     pub fn determinant(&self) -> R {
         let [a, b, c] = self.rows;
         a.dot(b.cross(c))
     }
 
     /// The inverse, `None` where the determinant is zero or not finite.
+    #[inline]
     pub fn inverse(&self) -> Option<Self> {
         let [a, b, c] = self.rows;
         let det = self.determinant();
@@ -163,6 +190,7 @@ impl<R: Real> Mat3<R> {
 
 impl<R: Real> Add for Mat3<R> {
     type Output = Self;
+    #[inline]
     fn add(self, o: Self) -> Self {
         Self { rows: [self.rows[0] + o.rows[0], self.rows[1] + o.rows[1], self.rows[2] + o.rows[2]] }
     }
@@ -170,6 +198,7 @@ impl<R: Real> Add for Mat3<R> {
 
 impl<R: Real> Sub for Mat3<R> {
     type Output = Self;
+    #[inline]
     fn sub(self, o: Self) -> Self {
         Self { rows: [self.rows[0] - o.rows[0], self.rows[1] - o.rows[1], self.rows[2] - o.rows[2]] }
     }
@@ -177,6 +206,7 @@ impl<R: Real> Sub for Mat3<R> {
 
 impl<R: Real> Mul<R> for Mat3<R> {
     type Output = Self;
+    #[inline]
     fn mul(self, s: R) -> Self {
         Self { rows: [self.rows[0] * s, self.rows[1] * s, self.rows[2] * s] }
     }
