@@ -6,9 +6,10 @@ use cloth_core::{ClothModel, Integrator, Scene, SimError, Substeps, stability};
 
 /// Substeps a trial of an explicit integrator runs from the scene's start.
 const TRIAL_SUBSTEPS: u32 = 2000;
-/// Substeps an XPBD trial runs: at 10 to 1000 times the explicit limit that is already seconds
-/// to hours of simulated time, and each XPBD substep is over a hundred dispatches.
-const XPBD_TRIAL_SUBSTEPS: u32 = 200;
+/// Substeps a trial of an integrator without a stability limit (XPBD, backward Euler, VBD) runs:
+/// at 10 to 1000 times the explicit limit that is already seconds to hours of simulated time,
+/// and each of their substeps is tens to hundreds of dispatches, or of solver iterations.
+const UNLIMITED_TRIAL_SUBSTEPS: u32 = 200;
 /// Substeps per `advance` call of a trial (one command buffer each on the GPU).
 const CHUNK_SUBSTEPS: u32 = 100;
 /// Bisection steps (geometric, between a quarter and 8 times the prediction).
@@ -65,14 +66,15 @@ impl std::fmt::Display for Limit {
 
 /// At most the vertex-substeps [`largest_stable_substep`] runs for `integrator` on `scene`: the
 /// bracket's first trial and every bisection step (or one trial per multiple where no limit is
-/// predicted, fewer), each a fresh run of `TRIAL_SUBSTEPS` substeps (XPBD: `XPBD_TRIAL_SUBSTEPS`).
+/// predicted, fewer), each a fresh run of `TRIAL_SUBSTEPS` substeps (`UNLIMITED_TRIAL_SUBSTEPS`
+/// for the integrators without a stability limit).
 pub fn planned_vertex_substeps(scene: &Scene, integrator: Integrator) -> u64 {
-    let substeps = if integrator == Integrator::Xpbd { XPBD_TRIAL_SUBSTEPS } else { TRIAL_SUBSTEPS };
+    let substeps = if integrator.unconditionally_stable() { UNLIMITED_TRIAL_SUBSTEPS } else { TRIAL_SUBSTEPS };
     let trials = (1 + BISECTION_STEPS).max(XPBD_MULTIPLES.len() as u32);
     (scene.vertex_count() as u64).saturating_mul(u64::from(trials) * u64::from(substeps))
 }
 
-/// Whether a trial (`TRIAL_SUBSTEPS`, or `XPBD_TRIAL_SUBSTEPS`, substeps of `h` from the scene's
+/// Whether a trial (`TRIAL_SUBSTEPS`, or `UNLIMITED_TRIAL_SUBSTEPS`, substeps of `h` from the scene's
 /// start) stays finite and within 1 km.
 fn stable(
     backend: &Backend,
@@ -92,7 +94,7 @@ fn stable(
         Err(SimError::Scene(_)) => return Ok(false),
         Err(e) => return Err(e),
     };
-    let substeps = if integrator == Integrator::Xpbd { XPBD_TRIAL_SUBSTEPS } else { TRIAL_SUBSTEPS };
+    let substeps = if integrator.unconditionally_stable() { UNLIMITED_TRIAL_SUBSTEPS } else { TRIAL_SUBSTEPS };
     for _ in 0..substeps / CHUNK_SUBSTEPS {
         sim.advance(CHUNK_SUBSTEPS)?;
     }

@@ -582,7 +582,7 @@ pub fn markdown(studies: &[Study], budgets: &Budgets, files: &Files) -> String {
              iteration on the springs' stiffness matrix at rest, damping bounded by Gershgorin) and the \
              safe Gershgorin bound (`ω_max² ≤ 2Σk/m`) that validation and `Auto` substeps use. XPBD, \
              backward Euler and VBD have no limit to predict; they are run at 10, 100 and 1000 times \
-             the explicit limit instead (XPBD for 200 substeps).\n"
+             the explicit limit instead, for 200 substeps.\n"
         );
         table_head(
             &mut md,
