@@ -164,6 +164,11 @@ fn collider_radius(scene: &cloth_core::Scene) -> Option<f64> {
     scene.colliders.iter().filter_map(|c| c.sphere().map(|s| s.radius)).reduce(f64::min)
 }
 
+/// A ratio in words: one decimal below 10, whole numbers from 10.
+fn ratio(r: f64) -> String {
+    if r >= 10.0 { format!("{r:.0}") } else { format!("{r:.1}") }
+}
+
 /// `a`, `a and b`, `a, b and c`.
 fn and_list<S: AsRef<str>>(items: &[S]) -> String {
     match items {
@@ -230,18 +235,25 @@ fn discussion(study: &Study, budgets: &Budgets, backend: &str) -> Vec<String> {
             if diverged.len() == 1 { "s" } else { "" }
         ));
     }
-    let dissipation: Vec<String> = at_coarsest
+    let energies: Vec<String> = at_coarsest
         .iter()
-        .filter(|r| !r.diverged && (r.integrator.unconditionally_stable()))
-        .map(|r| format!("{} {:.3} J", r.integrator.name(), r.energy_dissipated_j))
+        .filter(|r| !r.diverged && r.integrator.unconditionally_stable())
+        .map(|r| {
+            let (amount, side) = if r.energy_dissipated_j >= 0.0 {
+                (r.energy_dissipated_j, "below")
+            } else {
+                (-r.energy_dissipated_j, "above")
+            };
+            format!("{} {amount:.3} J {side}", r.integrator.name())
+        })
         .collect();
-    if !dissipation.is_empty() {
+    if !energies.is_empty() {
         said.push(format!(
-            "At {coarsest} substep{} a frame the methods without a stability limit dissipate, beyond the \
-             reference, {}: the numerical damping of one implicit step of {:.1} ms.",
+            "At {coarsest} substep{} a frame the methods without a stability limit end, against the reference's \
+             final energy, {}: below is energy dissipated (numerical damping), above is energy the springs \
+             still hold because the step did not converge them.",
             if coarsest == 1 { "" } else { "s" },
-            and_list(&dissipation),
-            1e3 * study.scene.time.frame_dt / f64::from(coarsest)
+            and_list(&energies)
         ));
     }
     // Equal cost: each method without a stability limit at the coarsest step against the most
@@ -256,12 +268,12 @@ fn discussion(study: &Study, budgets: &Budgets, backend: &str) -> Vec<String> {
             && best.integrator != r.integrator
         {
             said.push(format!(
-                "For the {} ms a frame of {} (error {}), {} is {:.1} times more accurate ({}, {} ms a frame).",
+                "For the {} ms a frame of {} (error {}), {} is {} times more accurate ({}, {} ms a frame).",
                 ms(frame_ms(study, r)),
                 run_name(r),
                 sci(r.rms_error_m),
                 run_name(best),
-                r.rms_error_m / best.rms_error_m,
+                ratio(r.rms_error_m / best.rms_error_m),
                 sci(best.rms_error_m),
                 ms(frame_ms(study, best))
             ));
@@ -276,11 +288,11 @@ fn discussion(study: &Study, budgets: &Budgets, backend: &str) -> Vec<String> {
         if let (Some(be), Some(vbd)) = (find(Integrator::BackwardEuler), find(Integrator::Vbd)) {
             let (better, worse) = if be.rms_error_m <= vbd.rms_error_m { (be, vbd) } else { (vbd, be) };
             said.push(format!(
-                "At {n} substep{} a frame {} ({} iterations a substep) is {:.1} times more accurate than {} ({}), at {:.2} times its cost.",
+                "At {n} substep{} a frame {} ({} iterations a substep) is {} times more accurate than {} ({}), at {:.2} times its cost.",
                 if n == 1 { "" } else { "s" },
                 better.integrator.name(),
                 better.solver_iterations_per_substep.map(|k| format!("{k:.1}")).unwrap_or_else(|| "—".into()),
-                worse.rms_error_m / better.rms_error_m,
+                ratio(worse.rms_error_m / better.rms_error_m),
                 worse.integrator.name(),
                 worse.solver_iterations_per_substep.map(|k| format!("{k:.1} iterations")).unwrap_or_default(),
                 better.cost_ms() / worse.cost_ms()
