@@ -774,7 +774,7 @@ mod tests {
         let study = ["study", "accuracy", &hanging, "--grid", "64x64", "--substeps", "100000", "--backends", "cpu"];
         let message = refusal(&[&study[..], &["--integrators", "euler", "--no-bisection"]].concat());
         assert!(message.contains("the 2 runs of this command add up to 1.106e11"), "{message}");
-        assert!(message.contains("sweep fewer --substeps"), "{message}");
+        assert!(message.contains("sweep fewer scenes, --substeps"), "{message}");
     }
 
     #[test]
