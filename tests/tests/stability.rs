@@ -29,8 +29,7 @@ fn hard(name: &str) -> Scene {
 /// the conformance suite's `implicit_integrators_match_the_reference` and by
 /// `implicit_integrators_at_10_and_100_times_the_explicit_bound`, which run on every backend.
 fn integrators(backend: &Backend) -> Vec<Integrator> {
-    let gpu = !backend.name.starts_with("cpu");
-    if gpu && std::env::var_os("CLOTH_FULL_SIZE").is_none() {
+    if short_on(backend) {
         Integrator::ALL.into_iter().filter(|i| !i.is_implicit()).collect()
     } else {
         Integrator::ALL.to_vec()
