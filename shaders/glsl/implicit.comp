@@ -39,7 +39,8 @@ layout(set = 0, binding = 5, std430) buffer VelocitiesOut { vec4 velocities_out[
 layout(set = 0, binding = 6, std430) buffer MaxPenetration { uint max_penetration_bits; };
 // Conjugate gradients' vectors, four a vertex: Δ (m/s), r (N·s), p (m/s), q = A p (N·s).
 layout(set = 0, binding = 7, std430) buffer Cg { vec4 cg[]; };
-// Five a vertex: the rows of the inverse of its diagonal block of A (1/kg); its contacts' block
+// Five a vertex: the rows of the inverse of its diagonal block of A (1/kg), with the right-hand
+// side b (N·s) in their w; its contacts' block
 // h C_c + h² K_c (kg) as (xx, yy, zz, xy) and (xz, yz).
 layout(set = 0, binding = 8, std430) buffer Blocks { vec4 blocks[]; };
 // The workgroups' partial sums: three sections of partial_count() each.
@@ -369,9 +370,9 @@ vec2 linearise(uint i, bool first) {
     cg[4u * i] = vec4(0.0);
     cg[4u * i + 1u] = vec4(b, 0.0);
     cg[4u * i + 2u] = vec4(z, 0.0);
-    blocks[5u * i] = vec4(pre.r0, 0.0);
-    blocks[5u * i + 1u] = vec4(pre.r1, 0.0);
-    blocks[5u * i + 2u] = vec4(pre.r2, 0.0);
+    blocks[5u * i] = vec4(pre.r0, b.x);
+    blocks[5u * i + 1u] = vec4(pre.r1, b.y);
+    blocks[5u * i + 2u] = vec4(pre.r2, b.z);
     blocks[5u * i + 3u] = vec4(contact.r0.x, contact.r1.y, contact.r2.z, contact.r0.y);
     blocks[5u * i + 4u] = vec4(contact.r0.z, contact.r1.z, 0.0, 0.0);
     return vec2(dot(b, z), dot(b, b));
@@ -480,6 +481,38 @@ void newton_update(uint i) {
     }
 }
 
+// Pass 9: the slopes of the incremental potential along the Newton iteration's change of vertex i,
+// at the iterate and at the full step, which pass 7 has taken (implicit.wgsl's
+// line_search_slopes).
+vec2 line_search_slopes(uint i) {
+    vec4 p_bar = positions_out[i];
+    if (p_bar.w <= 0.0) {
+        return vec2(0.0);
+    }
+    float h = params.substep_dt;
+    uint nx = params.grid_nx;
+    vec3 v = velocities_out[i].xyz;
+    vec3 change = cg[4u * i].xyz;
+    vec3 b = vec3(blocks[5u * i].w, blocks[5u * i + 1u].w, blocks[5u * i + 2u].w);
+    bool stuck;
+    vec3 n;
+    vec3 f = iterate_force(i, i % nx, i / nx, p_bar.xyz, v, velocities_in[i].w + h, stuck, n);
+    return vec2(-dot(change, b), dot(change, (v - velocities_in[i].xyz) * params.vertex_mass - f * h));
+}
+
+// Pass 10: the step α from the slopes' totals (implicit.wgsl's line_search_step); the free
+// vertex i's iterate cut back to v̄ + α Δ.
+void line_search_step(uint i, vec2 slopes) {
+    vec4 p = positions_in[i];
+    if (p.w <= 0.0 || !(slopes.x < 0.0 && slopes.y > 0.0)) {
+        return;
+    }
+    float alpha = slopes.x / (slopes.x - slopes.y);
+    vec3 v = velocities_out[i].xyz - cg[4u * i].xyz * (1.0 - alpha);
+    positions_out[i] = vec4(p.xyz + v * params.substep_dt, p.w);
+    velocities_out[i] = vec4(v, velocities_out[i].w);
+}
+
 // Pass 8; returns the vertex's displacement over the substep (w 1).
 vec4 finish(uint i) {
     vec4 p = positions_out[i];
@@ -487,17 +520,14 @@ vec4 finish(uint i) {
     vec3 x = p.xyz;
     vec3 v = velocities_out[i].xyz;
     if (EFFECT_FRICTION && p.w > 0.0) {
-        // Static friction at the substep's end (as RK4's last stage): a vertex friction holds
-        // sticks, its tangential motion over the substep undone.
+        // Static friction at the substep's end: a vertex friction holds keeps its solved
+        // position and loses its tangential velocity (implicit.wgsl's finish).
         uint nx = params.grid_nx;
         bool stuck;
         vec3 n;
         iterate_force(i, i % nx, i / nx, x, v, t_end, stuck, n);
         if (stuck) {
-            vec3 d = x - positions_in[i].xyz;
-            x = x - (d - n * dot(d, n));
             v = n * dot(v, n);
-            positions_out[i] = vec4(x, p.w);
         }
     }
     if (EFFECT_SELF_COLLISION && p.w > 0.0) {
@@ -601,6 +631,17 @@ void main() {
         }
         if (vertex) {
             newton_update(i);
+        }
+    } else if (IMPLICIT_PASS == 9u) {
+        vec2 terms = vec2(0.0);
+        if (vertex) {
+            terms = line_search_slopes(i);
+        }
+        write_partial(terms, 0u, local, group);
+    } else if (IMPLICIT_PASS == 10u) {
+        vec2 slopes = total_of(0u, local);
+        if (vertex) {
+            line_search_step(i, slopes);
         }
     } else {
         if (EFFECT_SELF_COLLISION) {

@@ -16,6 +16,11 @@
 //       pass 5            α = r·z / p·q; Δ += α p, r −= α q; partial sums of r·z and r·r;
 //       pass 6            done when |r| ≤ tol |b| (or p·q ≤ 0); else β = r·z' / r·z, p = P r + β p;
 //     pass 7 (per vertex) v̄ += Δ, x̄ = x + h v̄ (the pins where their motion puts them);
+//     with the solver's line search:
+//       pass 9            partial sums of the incremental potential's slopes along Δ, at the
+//       (per vertex)      iterate (−Δ·b; b kept in the w of the preconditioner's rows) and at
+//                         the full step;
+//       pass 10           α from their totals; v̄ −= (1 − α) Δ, x̄ = x + h v̄;
 //   pass 8 (per vertex)   finish: with SelfCollision the speed limit, the state's time, the
 //                         deepest penetration.
 // Sums over the vertices are reduced in two levels: each workgroup sums its invocations' terms in
@@ -41,7 +46,8 @@ override IMPLICIT_PASS: u32 = 0u;
 // Conjugate gradients' vectors, four a vertex: Δ (m/s) at 4 i, r (N·s) at 4 i + 1, p (m/s) at
 // 4 i + 2, q = A p (N·s) at 4 i + 3.
 @group(0) @binding(7) var<storage, read_write> cg: array<vec4<f32>>;
-// Five a vertex: the rows of the inverse of its diagonal block of A (1/kg) at 5 i to 5 i + 2; its
+// Five a vertex: the rows of the inverse of its diagonal block of A (1/kg) at 5 i to 5 i + 2, with
+// the right-hand side b (N·s) in their w; its
 // contacts' block h C_c + h² K_c (kg) at 5 i + 3 (xx, yy, zz, xy) and 5 i + 4 (xz, yz).
 @group(0) @binding(8) var<storage, read_write> blocks: array<vec4<f32>>;
 // The workgroups' partial sums: three sections of partial_count() each (the linearisation's
@@ -394,9 +400,9 @@ fn linearise(i: u32, first: bool) -> vec2<f32> {
     cg[4u * i] = vec4<f32>(0.0);
     cg[4u * i + 1u] = vec4<f32>(b, 0.0);
     cg[4u * i + 2u] = vec4<f32>(z, 0.0);
-    blocks[5u * i] = vec4<f32>(pre.r0, 0.0);
-    blocks[5u * i + 1u] = vec4<f32>(pre.r1, 0.0);
-    blocks[5u * i + 2u] = vec4<f32>(pre.r2, 0.0);
+    blocks[5u * i] = vec4<f32>(pre.r0, b.x);
+    blocks[5u * i + 1u] = vec4<f32>(pre.r1, b.y);
+    blocks[5u * i + 2u] = vec4<f32>(pre.r2, b.z);
     blocks[5u * i + 3u] = vec4<f32>(contact.r0.x, contact.r1.y, contact.r2.z, contact.r0.y);
     blocks[5u * i + 4u] = vec4<f32>(contact.r0.z, contact.r1.z, 0.0, 0.0);
     return vec2<f32>(dot(b, z), dot(b, b));
@@ -506,6 +512,36 @@ fn newton_update(i: u32) {
     }
 }
 
+// Pass 9: the slopes of the incremental potential along the Newton iteration's change Δ of
+// vertex i, at the iterate (−Δ·b) and at the full step (Δ·(M (v̄ + Δ − v) − h f)), which pass 7
+// has taken (cloth_core::reference's line_search_step).
+fn line_search_slopes(i: u32) -> vec2<f32> {
+    let p_bar = positions_out[i];
+    if (p_bar.w <= 0.0) {
+        return vec2<f32>(0.0);
+    }
+    let h = params.substep_dt;
+    let nx = params.grid_nx;
+    let v = velocities_out[i].xyz;
+    let change = cg[4u * i].xyz;
+    let b = vec3<f32>(blocks[5u * i].w, blocks[5u * i + 1u].w, blocks[5u * i + 2u].w);
+    let f = iterate_force(i, i % nx, i / nx, p_bar.xyz, v, velocities_in[i].w + h).force;
+    return vec2<f32>(-dot(change, b), dot(change, (v - velocities_in[i].xyz) * params.vertex_mass - f * h));
+}
+
+// Pass 10: the step α = g(0) / (g(0) − g(1)) where the full step overshoots (g(0) < 0 < g(1)),
+// else 1, from the slopes' totals; the free vertex i's iterate cut back to v̄ + α Δ.
+fn line_search_step(i: u32, slopes: vec2<f32>) {
+    let p = positions_in[i];
+    if ((p.w <= 0.0) | !((slopes.x < 0.0) & (slopes.y > 0.0))) {
+        return;
+    }
+    let alpha = slopes.x / (slopes.x - slopes.y);
+    let v = velocities_out[i].xyz - cg[4u * i].xyz * (1.0 - alpha);
+    positions_out[i] = vec4<f32>(p.xyz + v * params.substep_dt, p.w);
+    velocities_out[i] = vec4<f32>(v, velocities_out[i].w);
+}
+
 // Pass 8; returns the vertex's displacement over the substep (w 1).
 fn finish(i: u32) -> vec4<f32> {
     let p = positions_out[i];
@@ -514,16 +550,14 @@ fn finish(i: u32) -> vec4<f32> {
     var v = velocities_out[i].xyz;
     if (EFFECT_FRICTION) {
         if (p.w > 0.0) {
-            // Static friction at the substep's end (as RK4's last stage): a vertex friction holds
-            // sticks, its tangential motion over the substep undone.
+            // Static friction at the substep's end: a vertex friction holds keeps its solved
+            // position and loses its tangential velocity (the reference's backward_euler_substep
+            // says why not its position too).
             let nx = params.grid_nx;
             let held = iterate_force(i, i % nx, i / nx, x, v, t_end);
             if (held.stuck) {
                 let n = held.normal;
-                let d = x - positions_in[i].xyz;
-                x = x - (d - n * dot(d, n));
                 v = n * dot(v, n);
-                positions_out[i] = vec4<f32>(x, p.w);
             }
         }
     }
@@ -637,6 +671,19 @@ fn implicit(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
             }
             if (vertex) {
                 newton_update(i);
+            }
+        }
+        case 9u: {
+            var terms = vec2<f32>(0.0);
+            if (vertex) {
+                terms = line_search_slopes(i);
+            }
+            write_partial(terms, 0u, local, group);
+        }
+        case 10u: {
+            let slopes = total_of(0u, local);
+            if (vertex) {
+                line_search_step(i, slopes);
             }
         }
         default: {

@@ -218,13 +218,14 @@ pub fn under(scene: &Scene, integrator: cloth_core::Integrator) -> Scene {
     Scene { integrator, solver, ..scene.clone() }
 }
 
-/// The implicit integrators' solver in the suites: the default one Newton iteration of at most 10
-/// CG iterations (to the default tolerance, which the suites' scenes reach in 4 to 7), 10 VBD
+/// The implicit integrators' solver in the suites: the default one Newton iteration (with its line
+/// search) of at most 10 CG iterations (to the default tolerance, which the suites' scenes reach in 4 to 7), 10 VBD
 /// sweeps. A GPU frame records every CG iteration the solver allows (three dispatches each,
 /// skipped once the solve is done), so the default 100 would make backward Euler's frames on
 /// lavapipe about nine times as slow for the same result.
 pub const SUITE_SOLVER: cloth_core::solver::SolverSpec = cloth_core::solver::SolverSpec {
     newton_iterations: 1,
+    line_search: true,
     cg_tolerance: 1e-4,
     cg_max_iterations: 10,
     vbd_iterations: 10,

@@ -110,6 +110,11 @@ struct RunArgs {
     /// (the implicit ones take their iterations from the scene's `solver` field).
     #[arg(long, value_parser = parse_integrator)]
     integrator: Option<Integrator>,
+    /// The implicit integrators' solver settings instead of the scene's, written as the scene's
+    /// `solver` field, e.g. '(newton_iterations: 8)' (fields left out take their defaults; see
+    /// docs/model.md).
+    #[arg(long, value_parser = parse_solver)]
+    solver: Option<cloth_core::solver::SolverSpec>,
     /// Print one JSON object instead of the text summary.
     #[arg(long)]
     json: bool,
@@ -140,7 +145,7 @@ struct RunArgs {
     /// Count the cloth's self-intersections every N frames (1: every frame; 0: the final state
     /// only). Each count reads the positions back and, on two CPU cores, takes about as long as
     /// a CPU frame of 16 to 30 substeps: on large grids a larger N keeps the run fast, and the
-    /// reported maximum is then over the frames counted.
+    /// reported maxima (the crossings, the total energy) are then over the frames read back.
     #[arg(long, default_value_t = 1)]
     count_every: u32,
 }
@@ -228,8 +233,16 @@ pub(crate) fn parse_integrator(text: &str) -> Result<Integrator, String> {
     })
 }
 
+fn parse_solver(text: &str) -> Result<cloth_core::solver::SolverSpec, String> {
+    cloth_core::solver::SolverSpec::from_ron_str(text).map_err(|e| {
+        format!(
+            "'{text}': {e} (expected the scene's solver field, e.g. '(newton_iterations: 8, cg_max_iterations: 300)')"
+        )
+    })
+}
+
 fn load_scene(path: Option<&PathBuf>, grid: Option<[u32; 2]>, substeps: Option<Substeps>) -> Result<Scene> {
-    load_scene_with(path, grid, substeps, None)
+    load_scene_with(path, grid, substeps, None, None)
 }
 
 fn load_scene_with(
@@ -237,6 +250,7 @@ fn load_scene_with(
     grid: Option<[u32; 2]>,
     substeps: Option<Substeps>,
     integrator: Option<Integrator>,
+    solver: Option<cloth_core::solver::SolverSpec>,
 ) -> Result<Scene> {
     let mut scene = match path {
         Some(p) => Scene::load(p).with_context(|| format!("cannot use scene {}", p.display()))?,
@@ -250,6 +264,9 @@ fn load_scene_with(
     }
     if let Some(i) = integrator {
         scene.integrator = i;
+    }
+    if let Some(s) = solver {
+        scene.solver = s;
     }
     let warnings = scene.validate().context("the scene with the command-line overrides is invalid")?;
     for w in warnings {
@@ -405,7 +422,7 @@ struct RunPlan {
 }
 
 fn plan_run(args: &RunArgs) -> Result<RunPlan> {
-    let scene = load_scene_with(args.scene.as_ref(), args.grid, args.substeps, args.integrator)?;
+    let scene = load_scene_with(args.scene.as_ref(), args.grid, args.substeps, args.integrator, args.solver)?;
     let backend = backends::find(&args.backend).map_err(anyhow::Error::msg)?;
     let frames = args.frames.unwrap_or(scene.time.frames);
     let mut plan = WorkPlan::default();
@@ -441,6 +458,8 @@ fn run(args: RunArgs) -> Result<()> {
         Some(plan) => Some(cloth_export::Exporter::start(plan, &scene, &sim.read_state()?, sim.backend_name())?),
         None => None,
     };
+    let initial_energy = Energy::of(&model, &sim.read_state()?).total();
+    let mut energies = report::EnergyExtremes { initial_j: initial_energy, peak_j: initial_energy };
     let (mut exporting, mut exported) = (std::time::Duration::ZERO, None);
     let mut drawing = std::time::Duration::ZERO;
     let start = Instant::now();
@@ -470,6 +489,9 @@ fn run(args: RunArgs) -> Result<()> {
             (false, true) => exporting += t.elapsed(),
             (false, false) => drawing += t.elapsed(),
         }
+        let t = Instant::now();
+        energies.peak_j = energies.peak_j.max(Energy::of(&model, &state).total());
+        counting += t.elapsed();
         if counted {
             let t = Instant::now();
             // A frame that cannot be counted leaves the maximum over the frames unknown.
@@ -502,6 +524,7 @@ fn run(args: RunArgs) -> Result<()> {
         report::SelfIntersections { at_end, max: most_crossings.zip(at_end).map(|(a, b)| a.max(b)) };
     let diagnostics = sim.diagnostics()?;
     let energy = Energy::of(&model, &state);
+    energies.peak_j = energies.peak_j.max(energy.total());
     let measured = report::Measured {
         state: &state,
         diagnostics: &diagnostics,
@@ -510,6 +533,7 @@ fn run(args: RunArgs) -> Result<()> {
         frames,
         wall,
         self_intersections,
+        energies,
     };
     let mut report = report::Report::new(&*sim, &model, &measured);
     report.export = exported.as_ref().map(|summary| report::Export {

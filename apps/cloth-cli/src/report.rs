@@ -59,6 +59,17 @@ pub struct Measured<'a> {
     pub frames: u32,
     pub wall: Duration,
     pub self_intersections: SelfIntersections,
+    /// The total energy at the start and the most of it at a frame read back (J).
+    pub energies: EnergyExtremes,
+}
+
+/// The total energy (kinetic, elastic, gravitational, contact; J) at the start, and the most it
+/// reached at the frames the run read back (those it counted, drew or exported, and the last):
+/// the quantity the stability suite bounds.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct EnergyExtremes {
+    pub initial_j: f64,
+    pub peak_j: f64,
 }
 
 /// What `cloth run` reports.
@@ -95,6 +106,8 @@ pub struct Report {
     pub export: Option<Export>,
     pub final_kinetic_energy_j: f64,
     pub final_total_energy_j: f64,
+    /// The total energy at the start and its peak over the frames read back.
+    pub total_energy: EnergyExtremes,
     pub final_centroid_m: [f64; 3],
     /// Wall-clock time per frame, the per-frame read-back the self-intersection count needs
     /// included, the counting itself not, ms.
@@ -110,7 +123,7 @@ pub struct Report {
 
 impl Report {
     pub fn new(sim: &dyn Simulator, model: &ClothModel, run: &Measured<'_>) -> Self {
-        let Measured { state, diagnostics, counts, energy, frames, wall, self_intersections } = *run;
+        let Measured { state, diagnostics, counts, energy, frames, wall, self_intersections, energies } = *run;
         let scene = &model.scene;
         let [structural, shear, bend] = model.spring_counts();
         let min_radius = (scene.colliders.iter())
@@ -150,6 +163,7 @@ impl Report {
             export: None,
             final_kinetic_energy_j: energy.kinetic,
             final_total_energy_j: energy.total(),
+            total_energy: energies,
             final_centroid_m: state.centroid(),
             wall_ms_per_frame: wall.as_secs_f64() * 1e3 / frames.max(1) as f64,
             submissions_per_frame: counts.submissions as f64 / frames.max(1) as f64,
@@ -232,6 +246,12 @@ impl Report {
             c[2],
             self.final_kinetic_energy_j,
             self.nan_count
+        )?;
+        out!(
+            "energy      total {:.4e} J at the start, {:.4e} J at the end, at most {:.4e} J in a frame read back",
+            self.total_energy.initial_j,
+            self.final_total_energy_j,
+            self.total_energy.peak_j
         )?;
         out!(
             "speed       {:.3} ms per frame (wall clock); {:.2} submissions and {:.2} host waits per frame; \

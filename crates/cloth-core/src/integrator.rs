@@ -30,7 +30,8 @@
 //! * [`Integrator::BackwardEuler`]: implicit Euler, `v' = v + h M⁻¹ f(x', v')`, `x' = x + h v'`,
 //!   solved by Newton's method; the first iteration is Baraff and Witkin's linearised step, each
 //!   a linear solve `(M + h C + h² K) Δv = b` by conjugate gradients with a 3 × 3 block-Jacobi
-//!   preconditioner ([`crate::implicit`]). First order, stable at any step, and numerically
+//!   preconditioner ([`crate::implicit`]), its step cut back by a line search where it overshoots
+//!   ([`crate::solver::SolverSpec::line_search`]). First order, stable at any step, and numerically
 //!   dissipative: it damps the fast modes it cannot resolve.
 //! * [`Integrator::Vbd`]: Vertex Block Descent (Chen, Macklin et al. 2024), the same implicit-Euler
 //!   problem minimised as an incremental potential by per-vertex Newton steps, Gauss–Seidel over
@@ -116,15 +117,18 @@ impl Integrator {
     }
 
     /// Passes over the springs per substep (force evaluations, constraint sweeps for XPBD, at
-    /// the `solver`'s settings for the implicit integrators: one a conjugate-gradient iteration
-    /// at most, or one a VBD sweep).
+    /// the `solver`'s settings for the implicit integrators: a linearisation, one a
+    /// conjugate-gradient iteration at most and a line search a Newton iteration, or one a VBD
+    /// sweep).
     pub fn stages(self, solver: &crate::solver::SolverSpec) -> u32 {
         match self {
             Integrator::SemiImplicitEuler => 1,
             Integrator::VelocityVerlet => 2,
             Integrator::RungeKutta4 => 4,
             Integrator::Xpbd => XPBD_ITERATIONS,
-            Integrator::BackwardEuler => solver.newton_iterations * (1 + solver.cg_max_iterations),
+            Integrator::BackwardEuler => {
+                solver.newton_iterations * (1 + solver.cg_max_iterations + u32::from(solver.line_search))
+            }
             Integrator::Vbd => solver.vbd_iterations,
         }
     }

@@ -6,7 +6,9 @@
 //! * `colliders.obj`: every collider at time 0, one `o` object each;
 //! * `diagnostics.csv`: a row per kept frame: its number, the simulated time (s), the kinetic and
 //!   elastic energy (J), the deepest penetration into any collider (m) and the self-intersections
-//!   (edge–triangle crossings; empty where the cloth could not be counted).
+//!   (edge–triangle crossings; empty where the cloth could not be counted), and the total energy
+//!   (J: kinetic, elastic, gravitational and the colliders' penalty, what the stability suite
+//!   bounds; last, so readers of the earlier columns keep their indices).
 //!
 //! Each file is written whole (a temporary file renamed into place); the CSV last, so a folder
 //! with a `diagnostics.csv` holds a finished export.
@@ -23,7 +25,8 @@ use cloth_core::output::{cannot_write, temporary_beside, write_atomically};
 use crate::{ExportError, ExportPlan, ExportSummary};
 
 /// The CSV's header.
-pub const CSV_HEADER: &str = "frame,time_s,kinetic_energy_j,elastic_energy_j,deepest_penetration_m,self_intersections";
+pub const CSV_HEADER: &str =
+    "frame,time_s,kinetic_energy_j,elastic_energy_j,deepest_penetration_m,self_intersections,total_energy_j";
 
 /// Checks that `dir` is, or can be made, a folder that takes new files.
 pub(crate) fn check_writable(dir: &Path) -> std::io::Result<()> {
@@ -136,12 +139,13 @@ impl FolderWriter {
         let crossings = cloth_core::intersections::count(&state.positions, nx, ny).ok();
         let _ = writeln!(
             self.csv,
-            "{frame},{},{},{},{},{}",
+            "{frame},{},{},{},{},{},{}",
             state.time_s,
             energy.kinetic,
             energy.elastic.iter().sum::<f64>(),
             deepest_penetration(scene, state),
-            crossings.map_or(String::new(), |c| c.to_string())
+            crossings.map_or(String::new(), |c| c.to_string()),
+            energy.total()
         );
         self.write(&format!("frame_{frame:05}.obj"), obj.as_bytes())?;
         self.kept += 1;

@@ -140,6 +140,9 @@ fn a_folder_holds_an_obj_a_kept_frame_the_colliders_and_the_diagnostics() {
     assert_eq!(last[1].parse::<f64>().unwrap(), kept[2].time_s);
     assert!(last[2].parse::<f64>().unwrap() > 0.0, "the falling cloth has kinetic energy");
     assert_eq!(last[5], "0", "a flat falling cloth does not pass through itself");
+    let model = cloth_core::ClothModel::new(&scene);
+    let total = cloth_core::Energy::of(&model, &kept[2]).total();
+    assert_eq!(last[6].parse::<f64>().unwrap(), total, "the total energy is the state's");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -115,7 +115,7 @@ pub enum Constant {
     VbdPass,
     /// The vertex colour a VBD colour pass moves (0 to 4).
     VbdColor,
-    /// Backward Euler's pass (`implicit.wgsl` lists them, 0 to 8).
+    /// Backward Euler's pass (`implicit.wgsl` lists them, 0 to 10).
     ImplicitPass,
     /// Vertices along `i` of a block, 0 for rows.
     BlockWidth,
@@ -959,7 +959,8 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
 }
 
 /// Backward Euler (`implicit`): start; per Newton iteration a linearisation, per CG iteration its
-/// three passes (the product with A, the update, the new direction), the Newton update; finish.
+/// three passes (the product with A, the update, the new direction), the Newton update and, with
+/// the line search, its two passes (the slopes, the step); finish.
 /// Every iteration's dispatches are recorded (a solve that is done skips their work): the frame
 /// stays one submission with no host round trip.
 fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
@@ -1002,6 +1003,8 @@ fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
         "CG direction",
         "Newton update",
         "finish",
+        "line search slopes",
+        "line search step",
     ];
     let pipelines: Vec<PipelineId> = (names.iter().enumerate())
         .map(|(pass, what)| {
@@ -1025,6 +1028,10 @@ fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
             substep.push(pass(6, offset));
         }
         substep.push(pass(7, 0));
+        if solver.line_search {
+            substep.push(pass(9, 0));
+            substep.push(pass(10, 0));
+        }
     }
     substep.push(pass(8, 0));
     let checks = self_collision.then(|| self_collision_checks(b, &self_buffers));
