@@ -687,18 +687,11 @@ impl<R: Real> ReferenceSimulator<R> {
             );
             self.solver_spent.add_solve(report.iterations);
             let alpha = if solver.line_search {
-                self.line_search_step(&change, &b, (&x_bar, &v_bar), (&x_end, &v_end))
+                self.line_search_step(&change, &b, &v_bar, (&x_end, &v_end))
             } else {
                 R::one()
             };
-            for i in 0..n {
-                (x_bar[i], v_bar[i]) = if self.pinned[i] {
-                    (x_end[i], v_end[i])
-                } else {
-                    let v = v_bar[i] + change[i] * alpha;
-                    (x0[i] + v * h, v)
-                };
-            }
+            (x_bar, v_bar) = self.newton_iterate(&change, alpha, &v_bar, (&x_end, &v_end));
             time = t1;
         }
         if self.scene.effects.contains(Effect::Friction) {
@@ -721,6 +714,28 @@ impl<R: Real> ReferenceSimulator<R> {
         self.clock = t1;
     }
 
+    /// The Newton iterate `v̄ + α Δ`, `x⁰ + h (v̄ + α Δ)` on the free vertices; the pinned ones at
+    /// their prescribed end state `(x_end, v_end)`.
+    fn newton_iterate(
+        &self,
+        change: &[Vec3<R>],
+        alpha: R,
+        v_bar: &[Vec3<R>],
+        (x_end, v_end): (&[Vec3<R>], &[Vec3<R>]),
+    ) -> (Vec<Vec3<R>>, Vec<Vec3<R>>) {
+        let (h, x0) = (self.params.dt, &self.positions);
+        (0..change.len())
+            .map(|i| {
+                if self.pinned[i] {
+                    (x_end[i], v_end[i])
+                } else {
+                    let v = v_bar[i] + change[i] * alpha;
+                    (x0[i] + v * h, v)
+                }
+            })
+            .unzip()
+    }
+
     /// The step length `α` of a Newton iteration's change `Δ` (solved from the right-hand side
     /// `b`) from the iterate `v̄`: the root of the incremental potential's slope along `Δ`,
     /// interpolated between its value at the iterate, `g(0) = −Δ·b`, and at the full step,
@@ -740,20 +755,12 @@ impl<R: Real> ReferenceSimulator<R> {
         &self,
         change: &[Vec3<R>],
         b: &[Vec3<R>],
-        (x_bar, v_bar): (&[Vec3<R>], &[Vec3<R>]),
+        v_bar: &[Vec3<R>],
         (x_end, v_end): (&[Vec3<R>], &[Vec3<R>]),
     ) -> R {
         let (h, m, n) = (self.params.dt, self.params.mass, change.len());
-        let (x0, v0) = (&self.positions, &self.velocities);
-        let (mut x, mut v) = (x_bar.to_vec(), v_bar.to_vec());
-        for i in 0..n {
-            (x[i], v[i]) = if self.pinned[i] {
-                (x_end[i], v_end[i])
-            } else {
-                let v = v_bar[i] + change[i];
-                (x0[i] + v * h, v)
-            };
-        }
+        let v0 = &self.velocities;
+        let (x, v) = self.newton_iterate(change, R::one(), v_bar, (x_end, v_end));
         let f = self.forces(&x, &v, self.clock + h, h);
         let (mut at_start, mut at_full) = (R::zero(), R::zero());
         for i in (0..n).filter(|&i| !self.pinned[i]) {
