@@ -124,8 +124,12 @@ Mat3 mat3_inverse_or_identity(Mat3 m) {
     return Mat3(vec3(c0.x, c1.x, c2.x) * inv, vec3(c0.y, c1.y, c2.y) * inv, vec3(c0.z, c1.z, c2.z) * inv);
 }
 
-// The spring stiffness block K = k (u uᵀ + max(0, 1 − L0/L)(I − u uᵀ))
-// (cloth_core::forces::spring_stiffness_block).
+// The least transverse stiffness of a spring in the linearisation, a fraction of k
+// (cloth_core::implicit::TRANSVERSE_STIFFNESS_FLOOR, which says why).
+const float TRANSVERSE_STIFFNESS_FLOOR = 0.05;
+
+// The spring stiffness block K = k (u uᵀ + max(floor, 1 − L0/L)(I − u uᵀ))
+// (cloth_core::forces::spring_stiffness_block_floored).
 Mat3 spring_stiffness_block(vec3 x_i, vec3 x_j, float rest_length, float stiffness) {
     vec3 delta = x_j - x_i;
     float len = sqrt(dot(delta, delta));
@@ -134,7 +138,7 @@ Mat3 spring_stiffness_block(vec3 x_i, vec3 x_j, float rest_length, float stiffne
     }
     vec3 u = delta * (1.0 / len);
     Mat3 axial = mat3_outer(u, u);
-    float transverse = max(1.0 - rest_length / len, 0.0);
+    float transverse = max(1.0 - rest_length / len, TRANSVERSE_STIFFNESS_FLOOR);
     Mat3 across = Mat3(vec3(1.0, 0.0, 0.0) - axial.r0, vec3(0.0, 1.0, 0.0) - axial.r1, vec3(0.0, 0.0, 1.0) - axial.r2);
     return mat3_scaled(mat3_add(axial, mat3_scaled(across, transverse)), stiffness);
 }
@@ -342,6 +346,7 @@ vec2 linearise(uint i, bool first) {
         }
     }
     Mat3 contact = mat3_zero();
+    vec3 pull = vec3(0.0);
     if (EFFECT_CONTACT) {
         for (uint c = 0u; c < params.collider_count; c++) {
             vec3 center = collider_center(c, t);
@@ -359,12 +364,14 @@ vec2 linearise(uint i, bool first) {
                     c_c = mat3_scaled(mat3_outer(n, n), colliders[c].damping);
                 }
                 drop += mat3_mul(k_c, own_dx) + mat3_mul(c_c, own_dv);
+                // Outside, the penalty's linear extension pulls the vertex onto the surface.
+                pull -= n * (colliders[c].stiffness * max(surface.distance, 0.0));
                 contact = mat3_add(contact, mat3_add(mat3_scaled(c_c, h), mat3_scaled(k_c, h * h)));
             }
         }
     }
     diagonal = mat3_add(diagonal, contact);
-    vec3 b = (f - drop) * h - (v - v0) * m;
+    vec3 b = (f + pull - drop) * h - (v - v0) * m;
     Mat3 pre = mat3_inverse_or_identity(diagonal);
     vec3 z = mat3_mul(pre, b);
     cg[4u * i] = vec4(0.0);
@@ -482,7 +489,7 @@ void newton_update(uint i) {
 }
 
 // Pass 9: the slopes of the incremental potential along the Newton iteration's change of vertex i,
-// at the iterate and at the full step, which pass 7 has taken (implicit.wgsl's
+// at the iterate before the change and where the iterate is now (implicit.wgsl's
 // line_search_slopes).
 vec2 line_search_slopes(uint i) {
     vec4 p_bar = positions_out[i];
@@ -500,15 +507,75 @@ vec2 line_search_slopes(uint i) {
     return vec2(-dot(change, b), dot(change, (v - velocities_in[i].xyz) * params.vertex_mass - f * h));
 }
 
-// Pass 10: the step α from the slopes' totals (implicit.wgsl's line_search_step); the free
-// vertex i's iterate cut back to v̄ + α Δ.
-void line_search_step(uint i, vec2 slopes) {
-    vec4 p = positions_in[i];
-    if (p.w <= 0.0 || !(slopes.x < 0.0 && slopes.y > 0.0)) {
+// Backward Euler's line search by regula falsi with the Illinois rule (implicit.wgsl's Bracket):
+// step lengths lo < hi with slopes g(lo) < 0 <= g(hi), whether the search is on, and which end
+// the last cut replaced (0 none, 1 lo, 2 hi).
+struct Bracket {
+    vec2 lo;
+    vec2 hi;
+    bool open;
+    uint last;
+};
+
+// The bracket after slope measurement r (from 1): `steps`' last entries, three a measurement
+// counted from the end (implicit.wgsl's bracket_at).
+uint bracket_at(uint r) {
+    return uint(steps.length()) - 3u * r;
+}
+
+Bracket read_bracket(uint r) {
+    uint at = bracket_at(r);
+    return Bracket(uintBitsToFloat(steps[at]), uintBitsToFloat(steps[at + 1u]), steps[at + 2u].x != 0u,
+                   steps[at + 2u].y);
+}
+
+void write_bracket(uint r, Bracket b) {
+    uint at = bracket_at(r);
+    steps[at] = floatBitsToUint(b.lo);
+    steps[at + 1u] = floatBitsToUint(b.hi);
+    steps[at + 2u] = uvec2(b.open ? 1u : 0u, b.last);
+}
+
+float secant(Bracket b) {
+    return b.lo.x + (b.hi.x - b.lo.x) * b.lo.y / (b.lo.y - b.hi.y);
+}
+
+// Pass 10 of slope measurement r (implicit.wgsl's line_search_step).
+void line_search_step(uint i, uint r, vec2 slopes, bool records) {
+    float trial = 1.0;
+    Bracket b;
+    if (r == 1u) {
+        b = Bracket(vec2(0.0, slopes.x), vec2(1.0, slopes.y), slopes.x < 0.0 && slopes.y > 0.0, 0u);
+    } else {
+        b = read_bracket(r - 1u);
+        if (b.open) {
+            trial = secant(b);
+            if (slopes.y < 0.0) {
+                b.lo = vec2(trial, slopes.y);
+                if (b.last == 1u) {
+                    b.hi.y *= 0.5;
+                }
+                b.last = 1u;
+            } else {
+                b.hi = vec2(trial, slopes.y);
+                if (b.last == 2u) {
+                    b.lo.y *= 0.5;
+                }
+                b.last = 2u;
+            }
+        }
+    }
+    if (records) {
+        write_bracket(r, b);
+    }
+    if (i >= params.vertex_count) {
         return;
     }
-    float alpha = slopes.x / (slopes.x - slopes.y);
-    vec3 v = velocities_out[i].xyz - cg[4u * i].xyz * (1.0 - alpha);
+    vec4 p = positions_in[i];
+    if (p.w <= 0.0 || !b.open) {
+        return;
+    }
+    vec3 v = velocities_out[i].xyz + cg[4u * i].xyz * (secant(b) - trial);
     positions_out[i] = vec4(p.xyz + v * params.substep_dt, p.w);
     velocities_out[i] = vec4(v, velocities_out[i].w);
 }
@@ -640,9 +707,7 @@ void main() {
         write_partial(terms, 0u, local, group);
     } else if (IMPLICIT_PASS == 10u) {
         vec2 slopes = total_of(0u, local);
-        if (vertex) {
-            line_search_step(i, slopes);
-        }
+        line_search_step(i, k, slopes, group == 0u && local == 0u);
     } else {
         if (EFFECT_SELF_COLLISION) {
             clear_motion(local);

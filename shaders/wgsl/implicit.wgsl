@@ -16,11 +16,15 @@
 //       pass 5            α = r·z / p·q; Δ += α p, r −= α q; partial sums of r·z and r·r;
 //       pass 6            done when |r| ≤ tol |b| (or p·q ≤ 0); else β = r·z' / r·z, p = P r + β p;
 //     pass 7 (per vertex) v̄ += Δ, x̄ = x + h v̄ (the pins where their motion puts them);
-//     with the solver's line search:
+//     with the solver's line search, for each of the LINE_SEARCH_SLOPES slopes r it measures
+//     (cloth_core::solver; the dynamic uniform carries r):
 //       pass 9            partial sums of the incremental potential's slopes along Δ, at the
-//       (per vertex)      iterate (−Δ·b; b kept in the w of the preconditioner's rows) and at
-//                         the full step;
-//       pass 10           α from their totals; v̄ −= (1 − α) Δ, x̄ = x + h v̄;
+//       (per vertex)      iterate before the change (−Δ·b; b kept in the w of the
+//                         preconditioner's rows) and where the iterate is now (the full step for
+//                         r = 1);
+//       pass 10           the bracket of step lengths from their totals (regula falsi with the
+//                         Illinois rule), kept in the last entries of `steps`; the iterate moved
+//                         to the bracket's secant root α: v̄ += (α − α_r) Δ, x̄ = x + h v̄;
 //   pass 8 (per vertex)   finish: with SelfCollision the speed limit, the state's time, the
 //                         deepest penetration.
 // Sums over the vertices are reduced in two levels: each workgroup sums its invocations' terms in
@@ -138,8 +142,12 @@ fn mat3_inverse_or_identity(m: Mat3) -> Mat3 {
                 vec3<f32>(c0.z, c1.z, c2.z) * inv);
 }
 
-// The spring stiffness block K = k (u uᵀ + max(0, 1 − L0/L)(I − u uᵀ))
-// (cloth_core::forces::spring_stiffness_block).
+// The least transverse stiffness of a spring in the linearisation, a fraction of k
+// (cloth_core::implicit::TRANSVERSE_STIFFNESS_FLOOR, which says why).
+const TRANSVERSE_STIFFNESS_FLOOR: f32 = 0.05;
+
+// The spring stiffness block K = k (u uᵀ + max(floor, 1 − L0/L)(I − u uᵀ))
+// (cloth_core::forces::spring_stiffness_block_floored).
 fn spring_stiffness_block(x_i: vec3<f32>, x_j: vec3<f32>, rest_length: f32, stiffness: f32) -> Mat3 {
     let delta = x_j - x_i;
     let length = sqrt(dot(delta, delta));
@@ -148,7 +156,7 @@ fn spring_stiffness_block(x_i: vec3<f32>, x_j: vec3<f32>, rest_length: f32, stif
     }
     let u = delta * (1.0 / length);
     let axial = mat3_outer(u, u);
-    let transverse = max(1.0 - rest_length / length, 0.0);
+    let transverse = max(1.0 - rest_length / length, TRANSVERSE_STIFFNESS_FLOOR);
     let across = Mat3(vec3<f32>(1.0, 0.0, 0.0) - axial.r0, vec3<f32>(0.0, 1.0, 0.0) - axial.r1,
                       vec3<f32>(0.0, 0.0, 1.0) - axial.r2);
     return mat3_scaled(mat3_add(axial, mat3_scaled(across, transverse)), stiffness);
@@ -371,6 +379,7 @@ fn linearise(i: u32, first: bool) -> vec2<f32> {
         }
     }
     var contact = mat3_zero();
+    var pull = vec3<f32>(0.0);
     if (EFFECT_CONTACT) {
         for (var c = 0u; c < params.collider_count; c++) {
             let center = collider_center(c, t);
@@ -389,12 +398,14 @@ fn linearise(i: u32, first: bool) -> vec2<f32> {
                     c_c = mat3_scaled(mat3_outer(n, n), colliders[c].damping);
                 }
                 drop += mat3_mul(k_c, own.dx) + mat3_mul(c_c, own.dv);
+                // Outside, the penalty's linear extension pulls the vertex onto the surface.
+                pull -= n * (colliders[c].stiffness * max(surface.distance, 0.0));
                 contact = mat3_add(contact, mat3_add(mat3_scaled(c_c, h), mat3_scaled(k_c, h * h)));
             }
         }
     }
     diagonal = mat3_add(diagonal, contact);
-    let b = (f - drop) * h - (v - v0) * m;
+    let b = (f + pull - drop) * h - (v - v0) * m;
     let pre = mat3_inverse_or_identity(diagonal);
     let z = mat3_mul(pre, b);
     cg[4u * i] = vec4<f32>(0.0);
@@ -513,8 +524,9 @@ fn newton_update(i: u32) {
 }
 
 // Pass 9: the slopes of the incremental potential along the Newton iteration's change Δ of
-// vertex i, at the iterate (−Δ·b) and at the full step (Δ·(M (v̄ + Δ − v) − h f)), which pass 7
-// has taken (cloth_core::reference's line_search_step).
+// vertex i, at the iterate before the change (−Δ·b) and where the iterate is now
+// (Δ·(M (v̄ + α Δ − v) − h f)): the full step pass 7 has taken, or a secant root of pass 10
+// (cloth_core::reference's line_search_step).
 fn line_search_slopes(i: u32) -> vec2<f32> {
     let p_bar = positions_out[i];
     if (p_bar.w <= 0.0) {
@@ -529,15 +541,78 @@ fn line_search_slopes(i: u32) -> vec2<f32> {
     return vec2<f32>(-dot(change, b), dot(change, (v - velocities_in[i].xyz) * params.vertex_mass - f * h));
 }
 
-// Pass 10: the step α = g(0) / (g(0) − g(1)) where the full step overshoots (g(0) < 0 < g(1)),
-// else 1, from the slopes' totals; the free vertex i's iterate cut back to v̄ + α Δ.
-fn line_search_step(i: u32, slopes: vec2<f32>) {
+// Backward Euler's line search by regula falsi with the Illinois rule (cloth_core::solver's
+// LineSearchBracket): step lengths lo < hi with slopes g(lo) < 0 ≤ g(hi), whether the search is on
+// (the full step overshot), and which end the last cut replaced (0 none, 1 lo, 2 hi).
+struct Bracket {
+    lo: vec2<f32>,
+    hi: vec2<f32>,
+    open: bool,
+    last: u32,
+}
+
+// The bracket after slope measurement r (from 1) lives in `steps`' last entries, three a
+// measurement counted from the end, so that each pass reads its predecessor's while it writes its
+// own.
+fn bracket_at(r: u32) -> u32 {
+    return arrayLength(&steps) - 3u * r;
+}
+
+fn read_bracket(r: u32) -> Bracket {
+    let at = bracket_at(r);
+    let lo = bitcast<vec2<f32>>(steps[at]);
+    let hi = bitcast<vec2<f32>>(steps[at + 1u]);
+    return Bracket(lo, hi, steps[at + 2u].x != 0u, steps[at + 2u].y);
+}
+
+fn write_bracket(r: u32, b: Bracket) {
+    let at = bracket_at(r);
+    steps[at] = bitcast<vec2<u32>>(b.lo);
+    steps[at + 1u] = bitcast<vec2<u32>>(b.hi);
+    steps[at + 2u] = vec2<u32>(select(0u, 1u, b.open), b.last);
+}
+
+// The root of the secant through the bracket's ends.
+fn secant(b: Bracket) -> f32 {
+    return b.lo.x + (b.hi.x - b.lo.x) * b.lo.y / (b.lo.y - b.hi.y);
+}
+
+// Pass 10 of slope measurement r, from the slopes' totals (−Δ·b, g at the iterate): the bracket
+// [0, 1] where the full step overshoots (r = 1: g(0) < 0 < g(1)), else cut at its secant's root,
+// where pass 9 measured (the end kept through two cuts in a row has its slope halved); the free vertex i's iterate moved from where it was measured to the new
+// secant root, v̄ + α Δ. Without an overshoot the full step stays.
+fn line_search_step(i: u32, r: u32, slopes: vec2<f32>, records: bool) {
+    var trial = 1.0;
+    var b: Bracket;
+    if (r == 1u) {
+        b = Bracket(vec2<f32>(0.0, slopes.x), vec2<f32>(1.0, slopes.y), (slopes.x < 0.0) & (slopes.y > 0.0), 0u);
+    } else {
+        b = read_bracket(r - 1u);
+        if (b.open) {
+            trial = secant(b);
+            if (slopes.y < 0.0) {
+                b.lo = vec2<f32>(trial, slopes.y);
+                if (b.last == 1u) {
+                    b.hi.y = b.hi.y * 0.5;
+                }
+                b.last = 1u;
+            } else {
+                b.hi = vec2<f32>(trial, slopes.y);
+                if (b.last == 2u) {
+                    b.lo.y = b.lo.y * 0.5;
+                }
+                b.last = 2u;
+            }
+        }
+    }
+    if (records) {
+        write_bracket(r, b);
+    }
     let p = positions_in[i];
-    if ((p.w <= 0.0) | !((slopes.x < 0.0) & (slopes.y > 0.0))) {
+    if ((p.w <= 0.0) | !b.open | (i >= params.vertex_count)) {
         return;
     }
-    let alpha = slopes.x / (slopes.x - slopes.y);
-    let v = velocities_out[i].xyz - cg[4u * i].xyz * (1.0 - alpha);
+    let v = velocities_out[i].xyz + cg[4u * i].xyz * (secant(b) - trial);
     positions_out[i] = vec4<f32>(p.xyz + v * params.substep_dt, p.w);
     velocities_out[i] = vec4<f32>(v, velocities_out[i].w);
 }
@@ -682,9 +757,7 @@ fn implicit(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
         }
         case 10u: {
             let slopes = total_of(0u, local);
-            if (vertex) {
-                line_search_step(i, slopes);
-            }
+            line_search_step(i, k, slopes, (group == 0u) & (local == 0u));
         }
         default: {
             if (EFFECT_SELF_COLLISION) {

@@ -304,26 +304,39 @@ fn self_collision_constants_are_the_hosts() {
     assert_eq!(checked, 15, "five modules (step, XPBD, the hash, VBD, backward Euler), three constants");
 }
 
-/// VBD's friction holds a vertex below the slip speed the CPU reference uses
-/// (`cloth_core::vbd::FRICTION_SLIP_SPEED`), in both shading languages.
+/// The implicit integrators' constants are the host's, in both shading languages: VBD's friction
+/// holds a vertex below the slip speed the CPU reference uses (`cloth_core::vbd::FRICTION_SLIP_SPEED`),
+/// backward Euler's linearisation floors the springs' transverse stiffness as the reference's does
+/// (`cloth_core::implicit::TRANSVERSE_STIFFNESS_FLOOR`).
 #[test]
-fn vbd_constants_are_the_hosts() {
-    let expected = cloth_core::vbd::FRICTION_SLIP_SPEED as f32;
-    let module = naga::front::wgsl::parse_str(cloth_wgpu::VBD_SHADER).unwrap();
-    let (_, constant) = (module.constants.iter())
-        .find(|(_, c)| c.name.as_deref() == Some("FRICTION_SLIP_SPEED"))
-        .expect("vbd.wgsl declares FRICTION_SLIP_SPEED");
-    match module.global_expressions[constant.init] {
-        naga::Expression::Literal(naga::Literal::F32(v)) => assert_eq!(v, expected, "vbd.wgsl"),
-        ref other => panic!("vbd.wgsl: FRICTION_SLIP_SPEED is {other:?}"),
+fn implicit_constants_are_the_hosts() {
+    let shaders = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders");
+    for (wgsl, glsl_file, name, expected) in [
+        (cloth_wgpu::VBD_SHADER, "vbd.comp", "FRICTION_SLIP_SPEED", cloth_core::vbd::FRICTION_SLIP_SPEED),
+        (
+            cloth_wgpu::IMPLICIT_SHADER,
+            "implicit.comp",
+            "TRANSVERSE_STIFFNESS_FLOOR",
+            cloth_core::implicit::TRANSVERSE_STIFFNESS_FLOOR,
+        ),
+    ] {
+        let expected = expected as f32;
+        let module = naga::front::wgsl::parse_str(wgsl).unwrap();
+        let (_, constant) = (module.constants.iter())
+            .find(|(_, c)| c.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("the WGSL of {glsl_file} declares {name}"));
+        match module.global_expressions[constant.init] {
+            naga::Expression::Literal(naga::Literal::F32(v)) => assert_eq!(v, expected, "WGSL {name}"),
+            ref other => panic!("WGSL: {name} is {other:?}"),
+        }
+        let glsl = std::fs::read_to_string(shaders.join("glsl").join(glsl_file)).expect(glsl_file);
+        let line = (glsl.lines())
+            .find(|l| l.contains(&format!("const float {name}")))
+            .unwrap_or_else(|| panic!("{glsl_file} declares {name}"));
+        let value: f32 =
+            line.split('=').nth(1).and_then(|v| v.trim().trim_end_matches(';').parse().ok()).expect("a number");
+        assert_eq!(value, expected, "{glsl_file}: {line}");
     }
-    let glsl =
-        std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders/glsl/vbd.comp"))
-            .expect("vbd.comp");
-    let line = glsl.lines().find(|l| l.contains("const float FRICTION_SLIP_SPEED")).expect("vbd.comp declares it");
-    let value: f32 =
-        line.split('=').nth(1).and_then(|v| v.trim().trim_end_matches(';').parse().ok()).expect("a number");
-    assert_eq!(value, expected, "vbd.comp: {line}");
 }
 
 /// The candidates pass of `self_hash` (both shading languages) shares its workgroup among the

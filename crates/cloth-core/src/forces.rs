@@ -72,6 +72,19 @@ pub fn add_spring_force<R: Real>(
 /// as Choi and Ko's cloth solver does), so a compressed spring keeps only its axial stiffness.
 /// `k` in N/m, `L0` in m. A zero-length spring has no direction and gives the zero block.
 pub fn spring_stiffness_block<R: Real>(x_i: Vec3<R>, x_j: Vec3<R>, rest_length: R, stiffness: R) -> Mat3<R> {
+    spring_stiffness_block_floored(x_i, x_j, rest_length, stiffness, R::zero())
+}
+
+/// [`spring_stiffness_block`] with the transverse term held at `floor` or more,
+/// `K = k (u uᵀ + max(floor, 1 − L0/L) P)` (`floor` dimensionless, a fraction of `k`): a modified
+/// Jacobian for a Newton method (see [`crate::implicit::TRANSVERSE_STIFFNESS_FLOOR`]).
+pub fn spring_stiffness_block_floored<R: Real>(
+    x_i: Vec3<R>,
+    x_j: Vec3<R>,
+    rest_length: R,
+    stiffness: R,
+    floor: R,
+) -> Mat3<R> {
     let delta = x_j - x_i;
     let length = delta.length();
     if length <= R::zero() {
@@ -79,7 +92,7 @@ pub fn spring_stiffness_block<R: Real>(x_i: Vec3<R>, x_j: Vec3<R>, rest_length: 
     }
     let u = delta * (R::one() / length);
     let axial = Mat3::outer(u, u);
-    let transverse = (R::one() - rest_length / length).max(R::zero());
+    let transverse = (R::one() - rest_length / length).max(floor);
     (axial + (Mat3::identity() - axial) * transverse) * stiffness
 }
 

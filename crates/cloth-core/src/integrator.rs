@@ -118,7 +118,7 @@ impl Integrator {
 
     /// Passes over the springs per substep (force evaluations, constraint sweeps for XPBD, at
     /// the `solver`'s settings for the implicit integrators: a linearisation, one a
-    /// conjugate-gradient iteration at most and a line search a Newton iteration, or one a VBD
+    /// conjugate-gradient iteration at most and one a line-search slope a Newton iteration, or one a VBD
     /// sweep).
     pub fn stages(self, solver: &crate::solver::SolverSpec) -> u32 {
         match self {
@@ -127,7 +127,8 @@ impl Integrator {
             Integrator::RungeKutta4 => 4,
             Integrator::Xpbd => XPBD_ITERATIONS,
             Integrator::BackwardEuler => {
-                solver.newton_iterations * (1 + solver.cg_max_iterations + u32::from(solver.line_search))
+                let line_search = if solver.line_search { crate::solver::LINE_SEARCH_SLOPES } else { 0 };
+                solver.newton_iterations * (1 + solver.cg_max_iterations + line_search)
             }
             Integrator::Vbd => solver.vbd_iterations,
         }

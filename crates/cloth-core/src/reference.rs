@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 
-use crate::colliders::Collider;
+use crate::colliders::{Collider, Surface};
 use crate::coloring::{VERTEX_COLOR_COUNT, vertex_color};
 use crate::constraints::{contact_friction, project_spring, project_swept};
 use crate::effects::Effect;
@@ -20,14 +20,14 @@ use crate::integrator::{Integrator, XPBD_ITERATIONS};
 use crate::model::ClothModel;
 use crate::motion::{MotionOf, wind_velocity};
 use crate::quantities::SceneQuantities;
-use crate::real::{Real, Vec3};
+use crate::real::{Mat3, Real, Vec3};
 use crate::scene::Scene;
 use crate::self_collision::{
     CellHash, MARGIN_ROUNDING, SelfCollisionQuantities, far_partners, for_each_near_partner, limit_speed,
     repulsion_force, self_contact_correction,
 };
 use crate::simulator::{ClothState, Diagnostics, Simulator, check_state_size};
-use crate::solver::SolverIterations;
+use crate::solver::{LINE_SEARCH_SLOPES, LineSearchBracket, SolverIterations};
 use crate::vbd::{self, LocalTerms, chebyshev_weight};
 
 /// Vertices per rayon task: below this, splitting costs more than it saves.
@@ -666,7 +666,7 @@ impl<R: Real> ReferenceSimulator<R> {
         let (mut dx, mut dv, mut drop) = (vec![Vec3::zero(); n], vec![Vec3::zero(); n], vec![Vec3::zero(); n]);
         for _ in 0..solver.newton_iterations {
             let f = self.forces(&x_bar, &v_bar, time, h);
-            let system = self.linearised_system(&x_bar, &v_bar, (&x0, &v0), time);
+            let system = self.linearised_system(&x_bar, &v_bar, &x0, time);
             for i in 0..n {
                 (dx[i], dv[i]) = if self.pinned[i] {
                     (x_end[i] - x_bar[i], v_end[i] - v_bar[i])
@@ -675,7 +675,10 @@ impl<R: Real> ReferenceSimulator<R> {
                 };
             }
             system.force_drop(&dx, &dv, &mut drop);
-            let b: Vec<Vec3<R>> = (0..n).map(|i| (f[i] - drop[i]) * h - (v_bar[i] - v0[i]) * m).collect();
+            let mut b: Vec<Vec3<R>> = (0..n).map(|i| (f[i] - drop[i]) * h - (v_bar[i] - v0[i]) * m).collect();
+            for c in &system.contacts {
+                b[c.vertex] += c.pull * h;
+            }
             let mut change = vec![Vec3::zero(); n];
             let report = conjugate_gradients(
                 &system,
@@ -737,15 +740,14 @@ impl<R: Real> ReferenceSimulator<R> {
     }
 
     /// The step length `α` of a Newton iteration's change `Δ` (solved from the right-hand side
-    /// `b`) from the iterate `v̄`: the root of the incremental potential's slope along `Δ`,
-    /// interpolated between its value at the iterate, `g(0) = −Δ·b`, and at the full step,
-    /// `g(1) = Δ·(M (v̄ + Δ − v⁰) − h f(x⁰ + h (v̄ + Δ), v̄ + Δ))` (the gradient of backward
-    /// Euler's incremental potential is `M (v' − v⁰) − h f`):
-    ///
-    /// ```text
-    /// α = g(0) / (g(0) − g(1))   where g(0) < 0 < g(1) (the full step overshoots the minimum),
-    /// α = 1                      otherwise.
-    /// ```
+    /// `b`) from the iterate `v̄`: a root of the incremental potential's slope along `Δ`,
+    /// `g(α) = Δ·(M (v̄ + α Δ − v⁰) − h f(x⁰ + h (v̄ + α Δ), v̄ + α Δ))` (the gradient of
+    /// backward Euler's incremental potential is `M (v' − v⁰) − h f`), with `g(0) = −Δ·b`. Where
+    /// the full step does not overshoot the minimum (`g(0) < 0 < g(1)` fails), `α = 1`. Else
+    /// regula falsi with the Illinois rule ([`LineSearchBracket`]): the bracket `[0, 1]` is cut at
+    /// the secant's root `α = lo + (hi − lo) g(lo) / (g(lo) − g(hi))`, the slope measured there
+    /// replaces the end of the bracket with its sign, and the last secant root is the step:
+    /// [`LINE_SEARCH_SLOPES`] slopes measured in all, the first at the full step.
     ///
     /// Slopes rather than potentials: in f32 the potential's change along one step is lost in
     /// its rounding on a large grid, its slope is not; and the slope takes every force
@@ -758,40 +760,45 @@ impl<R: Real> ReferenceSimulator<R> {
         v_bar: &[Vec3<R>],
         (x_end, v_end): (&[Vec3<R>], &[Vec3<R>]),
     ) -> R {
-        let (h, m, n) = (self.params.dt, self.params.mass, change.len());
+        let (h, m) = (self.params.dt, self.params.mass);
         let v0 = &self.velocities;
-        let (x, v) = self.newton_iterate(change, R::one(), v_bar, (x_end, v_end));
-        let f = self.forces(&x, &v, self.clock + h, h);
-        let (mut at_start, mut at_full) = (R::zero(), R::zero());
-        for i in (0..n).filter(|&i| !self.pinned[i]) {
-            at_start = at_start - change[i].dot(b[i]);
-            at_full = at_full + change[i].dot((v[i] - v0[i]) * m - f[i] * h);
+        let free = || (0..change.len()).filter(|&i| !self.pinned[i]);
+        let slope = |alpha: R| {
+            let (x, v) = self.newton_iterate(change, alpha, v_bar, (x_end, v_end));
+            let f = self.forces(&x, &v, self.clock + h, h);
+            free().fold(R::zero(), |g, i| g + change[i].dot((v[i] - v0[i]) * m - f[i] * h))
+        };
+        let at_start = free().fold(R::zero(), |g, i| g - change[i].dot(b[i]));
+        let at_full = slope(R::one());
+        if !(at_start < R::zero() && at_full > R::zero()) {
+            return R::one();
         }
-        if at_start < R::zero() && at_full > R::zero() { at_start / (at_start - at_full) } else { R::one() }
+        let mut bracket = LineSearchBracket::new(at_start, at_full);
+        for _ in 1..LINE_SEARCH_SLOPES {
+            bracket.cut(slope(bracket.secant()));
+        }
+        bracket.secant()
     }
 
     /// The linearised system of a backward-Euler iteration about `(x, v)` at time `time`: every
     /// spring's blocks (the damping ones with `SpringDamping`) and the blocks of each free
-    /// vertex's contacts: `k_c n nᵀ`, and `c n nᵀ` while approaching, with `n` the collider's
-    /// normal seen from `x`.
+    /// vertex's contacts: `k_c n nᵀ`, and `c n nᵀ` while approaching.
     ///
-    /// A contact is in the linearisation where the vertex is inside the collider at `x`, or would
-    /// end the substep inside it at the iterate's velocity (`x⁰ + h v`) or at the substep's first
-    /// (`x⁰ + h v⁰`), not only where `x` is inside. The penalty is a force of the inside only: a
-    /// vertex about to land would otherwise be stepped as in free fall, deep into the collider,
-    /// and pushed back out by the next iteration's penalty, and the iterates alternate in and out
-    /// of the contact, storing penalty energy from nowhere (measured: a cloth thrown at the ground
-    /// at 10 m/s, `scenes/floor.ron` at 12 × 12, reached 4.6 times its starting energy; a cloth
-    /// landing on `scenes/hard/tilted_table.ron`, 1.3 times). Linearised from outside, the contact
-    /// is a stiffness about where the iterate is, which slows the approach: no force pulls the
-    /// vertex onto the surface.
-    fn linearised_system(
-        &self,
-        x: &[Vec3<R>],
-        v: &[Vec3<R>],
-        (x0, v0): (&[Vec3<R>], &[Vec3<R>]),
-        time: R,
-    ) -> LinearisedStep<R> {
+    /// A contact is in the linearisation where the vertex is inside the collider at the iterate
+    /// `x` or at the end position its velocity gives, `y = x⁰ + h v` (the same point after the
+    /// first iteration, which linearises about the substep's start). Where `y` is inside, the
+    /// penalty is linearised about `y`, with `y`'s normal and depth: its force enters as
+    /// [`ContactTerms::pull`], `P(y) − P(x) + K_c (y − x)` (with `P(z) = −k_c min(φ(z), 0) n(z)`
+    /// the penalty the model's force holds at `x`), so that the step's model of the contact is
+    /// `P(y) − K_c (x' − y)` at the new position `x'`. A vertex whose free flight ends inside
+    /// then lands where the penalty against its inertia puts it, as if the step had begun
+    /// there. Linearised about a vertex still outside, the penalty is zero and its stiffness a
+    /// brake: the vertex stops short of the surface by the ratio `1 + h² k_c / m` (36 at 256² on
+    /// `scenes/drape.ron` at one substep a frame, whose landing frame then stored 42.8 J in the
+    /// springs between braked vertices and those that reached the surface). Without the contact,
+    /// the vertex would be stepped deep into the collider and pushed out by the next iteration
+    /// with energy from nowhere.
+    fn linearised_system(&self, x: &[Vec3<R>], v: &[Vec3<R>], x0: &[Vec3<R>], time: R) -> LinearisedStep<R> {
         let p = &self.params;
         let damped = self.scene.effects.contains(Effect::SpringDamping);
         let springs = self
@@ -806,17 +813,21 @@ impl<R: Real> ReferenceSimulator<R> {
         let mut contacts = Vec::new();
         for c in &p.colliders {
             let (center, velocity) = c.at(time, moving);
+            let penalty = |surface: Surface<R>| surface.normal * (-c.stiffness * surface.distance.min(R::zero()));
             for i in (0..x.len()).filter(|&i| !self.pinned[i]) {
-                let inside = |y: Vec3<R>| c.distance(center, y) < R::zero();
-                if !(inside(x[i]) || inside(x0[i] + v[i] * p.dt) || inside(x0[i] + v0[i] * p.dt)) {
+                let y = x0[i] + v[i] * p.dt;
+                let (at_iterate, at_end) = (c.surface(center, x[i]), c.surface(center, y));
+                let ends_inside = at_end.distance < R::zero();
+                if !(ends_inside || at_iterate.distance < R::zero()) {
                     continue;
                 }
-                let surface = c.surface(center, x[i]);
+                let (at, surface) = if ends_inside { (y, at_end) } else { (x[i], at_iterate) };
                 let n = surface.normal;
-                let approach = (v[i] - velocity).dot(n);
-                let nn = crate::real::Mat3::outer(n, n);
-                let damping = if approach < R::zero() { nn * c.damping } else { crate::real::Mat3::zero() };
-                contacts.push(ContactTerms { vertex: i, stiffness: nn * c.stiffness, damping });
+                let nn = Mat3::outer(n, n);
+                let stiffness = nn * c.stiffness;
+                let damping = if (v[i] - velocity).dot(n) < R::zero() { nn * c.damping } else { Mat3::zero() };
+                let pull = penalty(surface) - penalty(at_iterate) + stiffness.mul_vec(at - x[i]);
+                contacts.push(ContactTerms { vertex: i, stiffness, damping, pull });
             }
         }
         LinearisedStep {

@@ -15,16 +15,16 @@ use serde::{Deserialize, Serialize};
 #[serde(default, deny_unknown_fields)]
 pub struct SolverSpec {
     /// Newton iterations per backward-Euler substep; the first is Baraff and Witkin's linearised
-    /// step. Default 1. With the line search, more iterations bring a stiff cloth's large step
-    /// closer to the implicit-Euler solution (measured, `scenes/stiff_drape.ron` at 128 × 128, one
-    /// substep a frame, f32: the energy peaked at 378 J with one iteration, 11.1 J with two and
-    /// 9.6 J with four, from 8.8 J), at their cost: each is a linearisation and a solve.
+    /// step. Default 1. More iterations bring a large step closer to the implicit-Euler solution,
+    /// at their cost: each is a linearisation and a solve. (Measured on the CPU, f32, one substep
+    /// a frame: at 128 × 128 one iteration keeps `scenes/drape.ron` and `scenes/stiff_drape.ron`
+    /// within the stability suite's energy bound; at 256 × 256 the drape's landing needs more,
+    /// `docs/model.md` gives the figures.)
     pub newton_iterations: u32,
     /// Whether each Newton iteration's step is cut back where it overshoots the minimum of the
-    /// incremental potential along its direction (`docs/model.md` gives the rule). Default true.
-    /// Off, every iteration takes its whole step: on stiff springs at a large step the linearised
-    /// step overshoots and the iterates gain energy (the stiff drape above peaked at 1.6e7 J with
-    /// one iteration, 4.4e4 J with four).
+    /// incremental potential along its direction (`docs/model.md` gives the rule; it measures
+    /// [`LINE_SEARCH_SLOPES`] slopes a Newton iteration). Default true. Off, every iteration takes
+    /// its whole step.
     pub line_search: bool,
     /// Conjugate gradients stop when the residual's norm is at most this fraction of the
     /// right-hand side's (dimensionless). 0 runs exactly [`SolverSpec::cg_max_iterations`] (the
@@ -65,6 +65,60 @@ impl SolverSpec {
 /// The largest [`SolverSpec::cg_max_iterations`] and [`SolverSpec::vbd_iterations`] accepted: a
 /// GPU frame records every iteration's dispatches.
 pub const MAX_SOLVER_ITERATIONS: u32 = 1000;
+
+/// The slopes of the incremental potential backward Euler's line search measures a Newton
+/// iteration ([`LineSearchBracket`]): at the full step, then at two secant roots. Each costs
+/// about what one conjugate-gradient iteration does (a force evaluation and a reduction).
+pub const LINE_SEARCH_SLOPES: u32 = 3;
+
+/// Backward Euler's line search on the slope `g(α)` of the incremental potential along a Newton
+/// change (`docs/model.md`): a bracket `[lo, hi]` of step lengths with `g(lo) < 0 ≤ g(hi)`, cut at
+/// the secant's root (regula falsi). The Illinois rule keeps a steep end from pinning the roots
+/// near the other: an end kept through two cuts in a row has its slope halved. Dimensionless
+/// lengths, slopes in J. The GPU backends keep the same bracket between their passes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LineSearchBracket<R> {
+    /// The step length with a negative slope, and the slope (halved by the Illinois rule).
+    pub lo: (R, R),
+    /// The step length with a non-negative slope, and the slope (halved by the Illinois rule).
+    pub hi: (R, R),
+    /// Which end the last cut replaced: −1 `lo`, 1 `hi`, 0 none yet.
+    pub last: i8,
+}
+
+impl<R: crate::real::Real> LineSearchBracket<R> {
+    /// The bracket `[0, 1]` of a full step that overshoots: `g(0) < 0 < g(1)`.
+    pub fn new(at_start: R, at_full: R) -> Self {
+        Self { lo: (R::zero(), at_start), hi: (R::one(), at_full), last: 0 }
+    }
+
+    /// The root of the secant through the bracket's ends, `lo + (hi − lo) g(lo) / (g(lo) − g(hi))`.
+    pub fn secant(&self) -> R {
+        let ((lo, g_lo), (hi, g_hi)) = (self.lo, self.hi);
+        lo + (hi - lo) * g_lo / (g_lo - g_hi)
+    }
+
+    /// The bracket after measuring the slope `g` at its secant root: that root replaces the end
+    /// whose slope has the same sign; the other end's slope is halved if the same end was
+    /// replaced the cut before.
+    pub fn cut(&mut self, g: R) {
+        let at = self.secant();
+        let half = R::of(0.5);
+        if g < R::zero() {
+            self.lo = (at, g);
+            if self.last == -1 {
+                self.hi.1 = self.hi.1 * half;
+            }
+            self.last = -1;
+        } else {
+            self.hi = (at, g);
+            if self.last == 1 {
+                self.lo.1 = self.lo.1 * half;
+            }
+            self.last = 1;
+        }
+    }
+}
 
 /// The largest [`SolverSpec::newton_iterations`] accepted.
 pub const MAX_NEWTON_ITERATIONS: u32 = 20;
@@ -122,5 +176,35 @@ mod tests {
         assert_eq!(SolverSpec::from_ron_str("()").unwrap(), SolverSpec::default());
         let e = SolverSpec::from_ron_str("(newton: 8)").unwrap_err().to_string();
         assert!(e.contains("newton") && e.contains("newton_iterations"), "{e}");
+    }
+
+    /// The bracket keeps the root between its ends and closes in on it: on a linear slope the
+    /// first secant root is the root; on a slope that steepens past the root (as a spring's
+    /// energy does), where plain regula falsi's roots creep from the shallow end (0.043 from the
+    /// root at 0.05 after six cuts), the Illinois rule brings them within 0.01 of it.
+    #[test]
+    fn the_line_search_bracket_closes_in_on_the_slopes_root() {
+        let linear = |a: f64| 3.0 * a - 1.2;
+        let bracket = LineSearchBracket::new(linear(0.0), linear(1.0));
+        assert!((bracket.secant() - 0.4).abs() < 1e-12);
+
+        let steep = |a: f64| a.powi(5) * 40.0 + a - 0.05;
+        let root = 0.05 - 40.0 * 0.05f64.powi(5); // within 1e-8 of the exact root
+        let error_after_six_cuts = |illinois: bool| {
+            let mut bracket = LineSearchBracket::new(steep(0.0), steep(1.0));
+            for _ in 0..6 {
+                let at = bracket.secant();
+                assert!(bracket.lo.0 < at && at < bracket.hi.0, "{at} outside {bracket:?}");
+                if !illinois {
+                    bracket.last = 0;
+                }
+                bracket.cut(steep(at));
+                assert!(bracket.lo.1 < 0.0 && bracket.hi.1 >= 0.0, "{bracket:?}");
+            }
+            (bracket.secant() - root).abs()
+        };
+        let (illinois, plain) = (error_after_six_cuts(true), error_after_six_cuts(false));
+        assert!(plain > 0.04, "plain regula falsi: {plain} from the root");
+        assert!(illinois < 0.01, "with the Illinois rule: {illinois} from the root");
     }
 }

@@ -6,6 +6,7 @@
 use cloth_core::colliders::ColliderKind;
 use cloth_core::coloring::{COLOR_COUNT, VERTEX_COLOR_COUNT};
 use cloth_core::integrator::XPBD_ITERATIONS;
+use cloth_core::solver::LINE_SEARCH_SLOPES;
 use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
@@ -960,7 +961,7 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
 
 /// Backward Euler (`implicit`): start; per Newton iteration a linearisation, per CG iteration its
 /// three passes (the product with A, the update, the new direction), the Newton update and, with
-/// the line search, its two passes (the slopes, the step); finish.
+/// the line search, two passes (the slopes, the step) for each slope it measures; finish.
 /// Every iteration's dispatches are recorded (a solve that is done skips their work): the frame
 /// stays one submission with no host round trip.
 fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
@@ -975,9 +976,11 @@ fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
     let partials = b.buffer("backward Euler partial sums", storage, 3 * 8 * partial_count, None);
     let counters = GpuCgCounters { tolerance: solver.cg_tolerance as f32, ..Default::default() };
     let counters = b.filled("backward Euler CG counters", storage, bytemuck::bytes_of(&counters));
-    let steps = b.buffer("backward Euler CG steps", storage, 8 * (u64::from(solver.cg_max_iterations) + 2), None);
-    let iterations =
-        b.filled("backward Euler CG iterations", BufferUsage::Uniform, &GpuCgStep::blocks(solver.cg_max_iterations));
+    // The CG iterations' entries, then three for each slope the line search measures.
+    let steps_len = u64::from(solver.cg_max_iterations) + 2 + 3 * u64::from(LINE_SEARCH_SLOPES);
+    let steps = b.buffer("backward Euler CG steps", storage, 8 * steps_len, None);
+    let blocks_len = solver.cg_max_iterations.max(LINE_SEARCH_SLOPES);
+    let iterations = b.filled("backward Euler CG iterations", BufferUsage::Uniform, &GpuCgStep::blocks(blocks_len));
     let self_collision = scene.effects.contains(Effect::SelfCollision);
     let self_buffers = self_collision_buffers(b);
     let kernel = b.kernel(Shader::Implicit, &IMPLICIT_BINDINGS);
@@ -1029,8 +1032,10 @@ fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
         }
         substep.push(pass(7, 0));
         if solver.line_search {
-            substep.push(pass(9, 0));
-            substep.push(pass(10, 0));
+            for r in 1..=LINE_SEARCH_SLOPES {
+                substep.push(pass(9, GpuCgStep::offset(r)));
+                substep.push(pass(10, GpuCgStep::offset(r)));
+            }
         }
     }
     substep.push(pass(8, 0));
