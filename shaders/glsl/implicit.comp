@@ -348,24 +348,28 @@ vec2 linearise(uint i, bool first) {
     Mat3 contact = mat3_zero();
     vec3 pull = vec3(0.0);
     if (EFFECT_CONTACT) {
+        // The end position the iterate's velocity gives (x̄ itself after the first iteration).
+        vec3 y = x0 + v * h;
         for (uint c = 0u; c < params.collider_count; c++) {
             vec3 center = collider_center(c, t);
-            // In the linearisation where the vertex is inside, or would end the substep inside at
-            // the iterate's velocity or at the substep's first (the reference's
-            // linearised_system says why).
-            bool inside = collider_distance(c, center, x) < 0.0 || collider_distance(c, center, x0 + v * h) < 0.0
-                || collider_distance(c, center, x0 + v0 * h) < 0.0;
-            if (inside) {
-                Surface surface = collider_surface(c, center, x);
+            float stiffness = colliders[c].stiffness;
+            // In the linearisation where the vertex is inside at x̄ or at y; linearised about y
+            // where y is inside (implicit.wgsl's linearise).
+            Surface at_iterate = collider_surface(c, center, x);
+            Surface at_end = collider_surface(c, center, y);
+            bool ends_inside = at_end.distance < 0.0;
+            if (ends_inside || at_iterate.distance < 0.0) {
+                vec3 at = ends_inside ? y : x;
+                Surface surface = ends_inside ? at_end : at_iterate;
                 vec3 n = surface.normal;
-                Mat3 k_c = mat3_scaled(mat3_outer(n, n), colliders[c].stiffness);
+                Mat3 k_c = mat3_scaled(mat3_outer(n, n), stiffness);
                 Mat3 c_c = mat3_zero();
                 if (dot(v - collider_velocity(c, t), n) < 0.0) {
                     c_c = mat3_scaled(mat3_outer(n, n), colliders[c].damping);
                 }
                 drop += mat3_mul(k_c, own_dx) + mat3_mul(c_c, own_dv);
-                // Outside, the penalty's linear extension pulls the vertex onto the surface.
-                pull -= n * (colliders[c].stiffness * max(surface.distance, 0.0));
+                pull += n * (-stiffness * min(surface.distance, 0.0))
+                    - at_iterate.normal * (-stiffness * min(at_iterate.distance, 0.0)) + mat3_mul(k_c, at - x);
                 contact = mat3_add(contact, mat3_add(mat3_scaled(c_c, h), mat3_scaled(k_c, h * h)));
             }
         }

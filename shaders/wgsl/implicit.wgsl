@@ -381,25 +381,33 @@ fn linearise(i: u32, first: bool) -> vec2<f32> {
     var contact = mat3_zero();
     var pull = vec3<f32>(0.0);
     if (EFFECT_CONTACT) {
+        // The end position the iterate's velocity gives (x̄ itself after the first iteration).
+        let y = x0 + v * h;
         for (var c = 0u; c < params.collider_count; c++) {
             let center = collider_center(c, t);
-            // In the linearisation where the vertex is inside, or would end the substep inside at
-            // the iterate's velocity or at the substep's first (the reference's
+            let stiffness = colliders[c].stiffness;
+            // In the linearisation where the vertex is inside at x̄ or at y; linearised about y
+            // where y is inside, the penalty's force there entering as `pull` (the reference's
             // linearised_system says why).
-            let inside = (collider_distance(c, center, x) < 0.0)
-                | (collider_distance(c, center, x0 + v * h) < 0.0)
-                | (collider_distance(c, center, x0 + v0 * h) < 0.0);
-            if (inside) {
-                let surface = collider_surface(c, center, x);
+            let at_iterate = collider_surface(c, center, x);
+            let at_end = collider_surface(c, center, y);
+            let ends_inside = at_end.distance < 0.0;
+            if (ends_inside | (at_iterate.distance < 0.0)) {
+                var at = x;
+                var surface = at_iterate;
+                if (ends_inside) {
+                    at = y;
+                    surface = at_end;
+                }
                 let n = surface.normal;
-                let k_c = mat3_scaled(mat3_outer(n, n), colliders[c].stiffness);
+                let k_c = mat3_scaled(mat3_outer(n, n), stiffness);
                 var c_c = mat3_zero();
                 if (dot(v - collider_velocity(c, t), n) < 0.0) {
                     c_c = mat3_scaled(mat3_outer(n, n), colliders[c].damping);
                 }
                 drop += mat3_mul(k_c, own.dx) + mat3_mul(c_c, own.dv);
-                // Outside, the penalty's linear extension pulls the vertex onto the surface.
-                pull -= n * (colliders[c].stiffness * max(surface.distance, 0.0));
+                pull += n * (-stiffness * min(surface.distance, 0.0))
+                    - at_iterate.normal * (-stiffness * min(at_iterate.distance, 0.0)) + mat3_mul(k_c, at - x);
                 contact = mat3_add(contact, mat3_add(mat3_scaled(c_c, h), mat3_scaled(k_c, h * h)));
             }
         }
