@@ -616,8 +616,11 @@ fn line_search_step(i: u32, r: u32, slopes: vec2<f32>, records: bool) {
     if (records) {
         write_bracket(r, b);
     }
+    if (i >= params.vertex_count) {
+        return;
+    }
     let p = positions_in[i];
-    if ((p.w <= 0.0) | !b.open | (i >= params.vertex_count)) {
+    if ((p.w <= 0.0) | !b.open) {
         return;
     }
     let v = velocities_out[i].xyz + cg[4u * i].xyz * (secant(b) - trial);
