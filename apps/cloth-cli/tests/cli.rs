@@ -726,9 +726,9 @@ fn run_reports_what_the_implicit_solvers_spent() {
         if name == "vbd" {
             assert_eq!(spent["vbd"], 120, "{name}: {spent}");
         } else {
-            assert_eq!(spent["newton"], 12, "{name}: one Newton iteration a substep: {spent}");
+            assert_eq!(spent["newton"], 24, "{name}: the default two Newton iterations a substep: {spent}");
             let cg = spent["cg"].as_u64().unwrap();
-            assert!((12..=12 * 50).contains(&cg), "{name}: {spent}");
+            assert!((24..=24 * 50).contains(&cg), "{name}: {spent}");
         }
     }
     let out = cloth(&["run", "--integrator", "implicit-euler", "--frames", "1"]);

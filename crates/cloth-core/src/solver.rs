@@ -15,10 +15,11 @@ use serde::{Deserialize, Serialize};
 #[serde(default, deny_unknown_fields)]
 pub struct SolverSpec {
     /// Newton iterations per backward-Euler substep; the first is Baraff and Witkin's linearised
-    /// step. Default 1. More iterations bring a large step closer to the implicit-Euler solution,
+    /// step. Default 2. More iterations bring a large step closer to the implicit-Euler solution,
     /// at their cost: each is a linearisation and a solve. (Measured on the CPU, f32, one substep
-    /// a frame: at 128 × 128 one iteration keeps `scenes/drape.ron` and `scenes/stiff_drape.ron`
-    /// within the stability suite's energy bound; at 256 × 256 the drape's landing needs more,
+    /// a frame: one iteration keeps `scenes/drape.ron` and `scenes/stiff_drape.ron` within the
+    /// stability suite's energy bound at 128 × 128 but not the drape's landing at 256 × 256, which
+    /// two iterations of at most 50 CG iterations do, at the CG budget of one of 100;
     /// `docs/model.md` gives the figures.)
     pub newton_iterations: u32,
     /// Whether each Newton iteration's step is cut back where it overshoots the minimum of the
@@ -30,7 +31,7 @@ pub struct SolverSpec {
     /// right-hand side's (dimensionless). 0 runs exactly [`SolverSpec::cg_max_iterations`] (the
     /// conformance suite's setting, so every backend does the same work). Default 1e-4.
     pub cg_tolerance: f64,
-    /// The most conjugate-gradient iterations per Newton iteration. Default 100. (A GPU frame
+    /// The most conjugate-gradient iterations per Newton iteration. Default 50. (A GPU frame
     /// records three dispatches for each one the solver allows, skipped once a solve is done.)
     pub cg_max_iterations: u32,
     /// Vertex Block Descent sweeps (over the five vertex colours) per substep. Default 10.
@@ -43,10 +44,10 @@ pub struct SolverSpec {
 impl Default for SolverSpec {
     fn default() -> Self {
         Self {
-            newton_iterations: 1,
+            newton_iterations: 2,
             line_search: true,
             cg_tolerance: 1e-4,
-            cg_max_iterations: 100,
+            cg_max_iterations: 50,
             vbd_iterations: 10,
             chebyshev_rho: 0.0,
         }

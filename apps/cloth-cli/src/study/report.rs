@@ -658,8 +658,8 @@ pub fn markdown(studies: &[Study], budgets: &Budgets, files: &Files) -> String {
          order, models no spring damping, and with few iterations the cloth is softer than its \
          springs' `k`.\n\
          * **Backward Euler** solves the implicit-Euler step by Newton's method with preconditioned \
-         conjugate gradients (by default Baraff and Witkin's one linearised step, cut back by a line \
-         search where it overshoots). It is stable at any \
+         conjugate gradients (by default two Newton iterations, the first Baraff and Witkin's \
+         linearised step, each cut back by a line search where it overshoots). It is stable at any \
          step and first order, and its error is mostly numerical damping: the energy it dissipates \
          grows with the step.\n\
          * **VBD** (Vertex Block Descent) minimises the same implicit-Euler energy by per-vertex Newton \
