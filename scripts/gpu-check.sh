@@ -138,6 +138,6 @@ fi
 
 if [[ " $checks " == *" study "* ]]; then
   echo "== study accuracy (report: docs/accuracy.md)"
-  "$CLOTH" study accuracy --backends cpu,cpu-f64,wgpu,vulkano --report docs/accuracy.md 2>&1 | tee "$OUT/study.txt"
+  "$CLOTH" study accuracy --backends cpu,cpu-f64,wgpu,vulkano --no-bisection --report docs/accuracy.md 2>&1 | tee "$OUT/study.txt"
   cp docs/accuracy.md docs/accuracy.csv docs/accuracy.svg docs/accuracy.png "$OUT/"
 fi

@@ -63,9 +63,18 @@ fn machine() -> String {
 }
 
 /// The command line that ran this study, as a `cargo run` command.
+///
+/// `--csv` is left out: the report copies its CSV and plot beside itself whatever the CSV's path.
 fn command() -> String {
-    let args: Vec<String> =
-        std::env::args().skip(1).map(|a| if a.contains(' ') { format!("'{a}'") } else { a }).collect();
+    let mut args = Vec::new();
+    let mut given = std::env::args().skip(1);
+    while let Some(a) = given.next() {
+        if a == "--csv" {
+            given.next();
+        } else if !a.starts_with("--csv=") {
+            args.push(if a.contains(' ') { format!("'{a}'") } else { a });
+        }
+    }
     format!("cargo run --release -p cloth-cli -- {}", args.join(" "))
 }
 
@@ -169,6 +178,17 @@ fn ratio(r: f64) -> String {
     if r >= 10.0 { format!("{r:.0}") } else { format!("{r:.1}") }
 }
 
+/// "`r` times more accurate", or "as accurate" where the errors' ratio `r` (≥ 1) would print as
+/// 1.0; `than` adds the comparison's word ("than" or "as").
+fn more_accurate(r: f64, than: bool) -> String {
+    match (r < 1.05, than) {
+        (true, false) => "as accurate".into(),
+        (true, true) => "as accurate as".into(),
+        (false, false) => format!("{} times more accurate", ratio(r)),
+        (false, true) => format!("{} times more accurate than", ratio(r)),
+    }
+}
+
 /// `a`, `a and b`, `a, b and c`.
 fn and_list<S: AsRef<str>>(items: &[S]) -> String {
     match items {
@@ -268,12 +288,12 @@ fn discussion(study: &Study, budgets: &Budgets, backend: &str) -> Vec<String> {
             && best.integrator != r.integrator
         {
             said.push(format!(
-                "For the {} ms a frame of {} (error {}), {} is {} times more accurate ({}, {} ms a frame).",
+                "For the {} ms a frame of {} (error {}), {} is {} ({}, {} ms a frame).",
                 ms(frame_ms(study, r)),
                 run_name(r),
                 sci(r.rms_error_m),
                 run_name(best),
-                ratio(r.rms_error_m / best.rms_error_m),
+                more_accurate(r.rms_error_m / best.rms_error_m, false),
                 sci(best.rms_error_m),
                 ms(frame_ms(study, best))
             ));
@@ -287,11 +307,11 @@ fn discussion(study: &Study, budgets: &Budgets, backend: &str) -> Vec<String> {
     if let (Some(be), Some(vbd)) = (find(Integrator::BackwardEuler), find(Integrator::Vbd)) {
         let (better, worse) = if be.rms_error_m <= vbd.rms_error_m { (be, vbd) } else { (vbd, be) };
         said.push(format!(
-            "At {n} substep{} a frame {} ({} iterations a substep) is {} times more accurate than {} ({}), at {:.2} times its cost.",
+            "At {n} substep{} a frame {} ({} iterations a substep) is {} {} ({}), at {:.2} times its cost.",
             if n == 1 { "" } else { "s" },
             better.integrator.name(),
             better.solver_iterations_per_substep.map(|k| format!("{k:.1}")).unwrap_or_else(|| "—".into()),
-            ratio(worse.rms_error_m / better.rms_error_m),
+            more_accurate(worse.rms_error_m / better.rms_error_m, true),
             worse.integrator.name(),
             worse.solver_iterations_per_substep.map(|k| format!("{k:.1} iterations")).unwrap_or_default(),
             better.cost_ms() / worse.cost_ms()
