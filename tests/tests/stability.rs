@@ -279,8 +279,9 @@ fn implicit_integrators_at_10_and_100_times_the_explicit_bound(backend: &Backend
 /// cloth lands at frame 15) with four Newton iterations (with one, the stiff drape went 2.2% of
 /// the radius deep); with `CLOTH_FULL_SIZE`, 256 × 256 for 2 s with four Newton iterations of at
 /// most 300 CG iterations (at 256², `ω h` ≈ 450 and 4500, one Newton iteration of at most 100
-/// let the drape's energy reach 11.3 J; the default's two of at most 50 hold it at 9.2 J). With friction undoing a held vertex's motion over the
-/// whole step, the stiff drape's energy rose to 20 J from 8.8 J here.
+/// let the drape's energy reach 11.3 J; the default's two of at most 50 hold it at 9.2 J). With
+/// friction undoing a held vertex's motion over the whole step, the stiff drape's energy rose to
+/// 20 J from 8.8 J here.
 fn backward_euler_lands_at_one_substep_a_frame(backend: &Backend) {
     let full = std::env::var_os("CLOTH_FULL_SIZE").is_some();
     let (n, frames, cg) = match (full, short_on(backend)) {

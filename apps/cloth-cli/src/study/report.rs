@@ -181,12 +181,12 @@ fn ratio(r: f64) -> String {
 /// "`r` times more accurate", or "as accurate" where the errors' ratio `r` (≥ 1) would print as
 /// 1.0; `than` adds the comparison's word ("than" or "as").
 fn more_accurate(r: f64, than: bool) -> String {
-    match (r < 1.05, than) {
-        (true, false) => "as accurate".into(),
-        (true, true) => "as accurate as".into(),
-        (false, false) => format!("{} times more accurate", ratio(r)),
-        (false, true) => format!("{} times more accurate than", ratio(r)),
-    }
+    let (phrase, word) = if r < 1.05 {
+        ("as accurate".to_string(), "as")
+    } else {
+        (format!("{} times more accurate", ratio(r)), "than")
+    };
+    if than { format!("{phrase} {word}") } else { phrase }
 }
 
 /// `a`, `a and b`, `a, b and c`.
