@@ -633,6 +633,9 @@ void main() {
             positions_out[i] = positions_in[i];
             velocities_out[i] = velocities_in[i];
         }
+        if (i == 0u) {
+            counters.largest_b_norm = 0.0;
+        }
     } else if (IMPLICIT_PASS == 1u || IMPLICIT_PASS == 2u) {
         vec2 terms = vec2(0.0);
         if (vertex) {
@@ -642,14 +645,20 @@ void main() {
     } else if (IMPLICIT_PASS == 3u || IMPLICIT_PASS == 4u) {
         bool done;
         if (IMPLICIT_PASS == 3u) {
-            // The solve's start: r·z and |b| of the linearisation; done at once when b = 0.
+            // The solve's start: r·z and |b| of the linearisation. The residual is measured
+            // against |b| or the substep's largest earlier |b| (implicit.rs's
+            // `conjugate_gradients`): done at once when b is within the tolerance of it.
+            // Workgroup 0 raises `largest_b_norm` while others may read it; either value gives
+            // the same maximum with this |b|.
             vec2 initial = total_of(0u, local);
             float b_norm = sqrt(initial.y);
-            done = b_norm <= counters.tolerance * b_norm;
+            float reference = max(b_norm, counters.largest_b_norm);
+            done = b_norm <= counters.tolerance * reference;
             if (group == 0u && local == 0u) {
                 counters.newton += 1u;
                 counters.solve_iterations = 0u;
-                counters.b_norm = b_norm;
+                counters.b_norm = reference;
+                counters.largest_b_norm = reference;
                 steps[1] = uvec2(floatBitsToUint(initial.x), done ? 1u : 0u);
             }
         } else {

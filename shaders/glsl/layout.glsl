@@ -33,9 +33,9 @@ struct CgCounters {
     uint cg;                // CG iterations run
     uint cg_most;           // the most CG iterations of one solve
     uint solve_iterations;  // the current solve's iterations so far
-    float b_norm;           // the current solve's |b|, N·s
+    float b_norm;           // what the solve's residual is measured against, N·s
     float tolerance;        // the relative tolerance
-    uint pad0;
+    float largest_b_norm;   // the largest |b| of the substep's Newton iterations so far, N·s
     uint pad1;
 };
 

@@ -682,6 +682,9 @@ fn implicit(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
             if (vertex) {
                 start(i);
             }
+            if (i == 0u) {
+                counters.largest_b_norm = 0.0;
+            }
         }
         case 1u, 2u: {
             var terms = vec2<f32>(0.0);
@@ -693,14 +696,20 @@ fn implicit(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
         case 3u, 4u: {
             var done = false;
             if (IMPLICIT_PASS == 3u) {
-                // The solve's start: r·z and |b| of the linearisation; done at once when b = 0.
+                // The solve's start: r·z and |b| of the linearisation. The residual is measured
+                // against |b| or the substep's largest earlier |b| (implicit.rs's
+                // `conjugate_gradients`): done at once when b is within the tolerance of it.
+                // Workgroup 0 raises `largest_b_norm` while others may read it; either value
+                // gives the same maximum with this |b|.
                 let initial = total_of(0u, local);
                 let b_norm = sqrt(initial.y);
-                done = b_norm <= counters.tolerance * b_norm;
+                let reference = max(b_norm, counters.largest_b_norm);
+                done = b_norm <= counters.tolerance * reference;
                 if ((group == 0u) & (local == 0u)) {
                     counters.newton += 1u;
                     counters.solve_iterations = 0u;
-                    counters.b_norm = b_norm;
+                    counters.b_norm = reference;
+                    counters.largest_b_norm = reference;
                     steps[1] = vec2<u32>(bitcast<u32>(initial.x), select(0u, 1u, done));
                 }
             } else {

@@ -86,9 +86,9 @@ struct CgCounters {
     cg: u32,                 // CG iterations run
     cg_most: u32,            // the most CG iterations of one solve
     solve_iterations: u32,   // the current solve's iterations so far
-    b_norm: f32,             // the current solve's |b|, N·s
+    b_norm: f32,             // what the solve's residual is measured against, N·s
     tolerance: f32,          // the relative tolerance
-    pad0: u32,
+    largest_b_norm: f32,     // the largest |b| of the substep's Newton iterations so far, N·s
     pad1: u32,
 }
 

@@ -27,7 +27,8 @@
 //!
 //! [`conjugate_gradients`] is preconditioned by the inverse of each vertex's 3 × 3 diagonal block
 //! of `A` ([`LinearisedStep::block_jacobi`]) and stops when the residual's norm is at most the
-//! tolerance times the right-hand side's.
+//! tolerance times the right-hand side's, or, in a later Newton iteration of the substep, times the
+//! largest right-hand side of its earlier ones where that is larger.
 
 use crate::forces::{spring_damping_block, spring_stiffness_block_floored};
 use crate::real::{Mat3, Real, Vec3};
@@ -186,6 +187,8 @@ pub struct CgReport<R> {
     pub iterations: u32,
     /// `|b − A x| / |b|` at the end (0 for `b = 0`).
     pub relative_residual: R,
+    /// `|b|` over the free vertices, N·s.
+    pub rhs_norm: R,
 }
 
 fn dot<R: Real>(a: &[Vec3<R>], b: &[Vec3<R>]) -> R {
@@ -194,14 +197,20 @@ fn dot<R: Real>(a: &[Vec3<R>], b: &[Vec3<R>]) -> R {
 
 /// Solves `A x = b` for the free vertices by conjugate gradients preconditioned with
 /// `preconditioner` (one block a vertex, e.g. [`LinearisedStep::block_jacobi`]), from the
-/// initial guess in `x`; stops when `|b − A x| ≤ tolerance |b|` or after `max_iterations`.
+/// initial guess in `x`; stops when `|b − A x| ≤ tolerance max(|b|, reference)` or after
+/// `max_iterations`. `reference` (N·s) is a right-hand side's norm the residual is measured
+/// against where `b`'s is smaller: a later Newton iteration passes the largest `|b|` of its
+/// substep's earlier ones, so that a right-hand side already within the tolerance of the first
+/// is solved by no iteration at all (zero for a solve of its own).
 /// `x`'s pinned entries are left as they are; `b`'s are ignored.
+#[allow(clippy::too_many_arguments)]
 pub fn conjugate_gradients<R: Real>(
     system: &LinearisedStep<R>,
     preconditioner: &[Mat3<R>],
     b: &[Vec3<R>],
     x: &mut [Vec3<R>],
     tolerance: R,
+    reference: R,
     max_iterations: u32,
 ) -> CgReport<R> {
     let n = b.len();
@@ -215,14 +224,16 @@ pub fn conjugate_gradients<R: Real>(
     let mut rhs = b.to_vec();
     free(&mut rhs);
     let b_norm = dot(&rhs, &rhs).sqrt();
+    let threshold = tolerance * b_norm.max(reference);
     let mut q = vec![Vec3::zero(); n];
     system.apply(x, &mut q);
     let mut r: Vec<Vec3<R>> = rhs.iter().zip(&q).map(|(&b, &q)| b - q).collect();
     let report = |r: &[Vec3<R>], iterations| CgReport {
         iterations,
         relative_residual: if b_norm > R::zero() { dot(r, r).sqrt() / b_norm } else { dot(r, r).sqrt() },
+        rhs_norm: b_norm,
     };
-    if dot(&r, &r).sqrt() <= tolerance * b_norm {
+    if dot(&r, &r).sqrt() <= threshold {
         return report(&r, 0);
     }
     let precondition = |r: &[Vec3<R>], z: &mut Vec<Vec3<R>>| {
@@ -246,7 +257,7 @@ pub fn conjugate_gradients<R: Real>(
             }
             r[k] -= q[k] * alpha;
         }
-        if dot(&r, &r).sqrt() <= tolerance * b_norm {
+        if dot(&r, &r).sqrt() <= threshold {
             return report(&r, iteration);
         }
         precondition(&r, &mut z);
@@ -336,7 +347,7 @@ mod tests {
             let n = system.masses.len();
             let b: Vec<Vec3<f64>> = (0..n).map(|i| field(i, 2.0) * 1e-3).collect();
             let mut x = vec![Vec3::zero(); n];
-            let report = conjugate_gradients(&system, &system.block_jacobi(), &b, &mut x, 1e-10, 500);
+            let report = conjugate_gradients(&system, &system.block_jacobi(), &b, &mut x, 1e-10, 0.0, 500);
             assert!(report.relative_residual <= 1e-10, "{pinned}: {report:?}");
             assert!(report.iterations > 1 && report.iterations < 3 * n as u32, "{pinned}: {report:?}");
             // The residual it reports is the system's.
@@ -350,6 +361,31 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_right_hand_side_within_the_tolerance_of_an_earlier_one_takes_no_iteration() {
+        let system = crumpled_cloth(false);
+        let n = system.masses.len();
+        let b: Vec<Vec3<f64>> = (0..n).map(|i| field(i, 2.0) * 1e-3).collect();
+        let b_norm = dot(&b, &b).sqrt();
+        let solve = |reference: f64| {
+            let mut x = vec![Vec3::zero(); n];
+            let report = conjugate_gradients(&system, &system.block_jacobi(), &b, &mut x, 1e-4, reference, 500);
+            (report, x)
+        };
+        // Measured against itself (a first Newton iteration), the solve runs.
+        let (own, _) = solve(0.0);
+        assert!(own.iterations > 1 && own.relative_residual <= 1e-4, "{own:?}");
+        assert!((own.rhs_norm - b_norm).abs() <= 1e-12 * b_norm);
+        // A later iteration whose |b| is below the tolerance of the substep's first: nothing to do.
+        let (later, x) = solve(1.01 * b_norm / 1e-4);
+        assert_eq!(later.iterations, 0, "{later:?}");
+        assert!(x.iter().all(|e| *e == Vec3::zero()), "the change stays zero");
+        // Just above it, the solve runs, and stops at the earlier |b|'s tolerance: fewer
+        // iterations than against its own.
+        let (coarser, _) = solve(0.5 * b_norm / 1e-4);
+        assert!(coarser.iterations >= 1 && coarser.iterations < own.iterations, "{coarser:?} against {own:?}");
     }
 
     #[test]
@@ -374,7 +410,7 @@ mod tests {
         assert!((drop[1].x - (k * v1 + c * 2.0)).abs() < 1e-12, "K dx + C dv: {:?}", drop[1]);
         let b = vec![Vec3::zero(), v(h * (f - h * kv[1].x), 0.0, 0.0)];
         let mut dv = vec![Vec3::zero(); 2];
-        let report = conjugate_gradients(&system, &system.block_jacobi(), &b, &mut dv, 1e-14, 10);
+        let report = conjugate_gradients(&system, &system.block_jacobi(), &b, &mut dv, 1e-14, 0.0, 10);
         let expected = h * (f - h * k * v1) / (m + h * c + h * h * k);
         assert!((dv[1].x - expected).abs() < 1e-15, "{} against {expected} ({report:?})", dv[1].x);
         assert!(dv[1].y.abs() < 1e-18 && dv[1].z.abs() < 1e-18);

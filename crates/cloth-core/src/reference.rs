@@ -664,6 +664,8 @@ impl<R: Real> ReferenceSimulator<R> {
         self.move_pins(&mut x_end, &mut v_end, t, t1);
         let (mut x_bar, mut v_bar, mut time) = (x0.clone(), v0.clone(), t);
         let (mut dx, mut dv, mut drop) = (vec![Vec3::zero(); n], vec![Vec3::zero(); n], vec![Vec3::zero(); n]);
+        // The largest right-hand side's norm of the substep's Newton iterations so far, N·s.
+        let mut largest_b = R::zero();
         for _ in 0..solver.newton_iterations {
             let f = self.forces(&x_bar, &v_bar, time, h);
             let system = self.linearised_system(&x_bar, &v_bar, &x0, time);
@@ -686,8 +688,10 @@ impl<R: Real> ReferenceSimulator<R> {
                 &b,
                 &mut change,
                 R::of(solver.cg_tolerance),
+                largest_b,
                 solver.cg_max_iterations,
             );
+            largest_b = largest_b.max(report.rhs_norm);
             self.solver_spent.add_solve(report.iterations);
             let alpha = if solver.line_search {
                 self.line_search_step(&change, &b, &v_bar, (&x_end, &v_end))

@@ -28,8 +28,12 @@ pub struct SolverSpec {
     /// its whole step.
     pub line_search: bool,
     /// Conjugate gradients stop when the residual's norm is at most this fraction of the
-    /// right-hand side's (dimensionless). 0 runs exactly [`SolverSpec::cg_max_iterations`] (the
-    /// conformance suite's setting, so every backend does the same work). Default 1e-4.
+    /// right-hand side's, or of the largest right-hand side of the substep's earlier Newton
+    /// iterations where that is larger (dimensionless): a Newton iteration whose right-hand side
+    /// is already within the tolerance of the first's changes nothing, rather than solving
+    /// rounding noise to the tolerance and line-searching along it. 0 runs exactly
+    /// [`SolverSpec::cg_max_iterations`] (the conformance suite's setting, so every backend does
+    /// the same work). Default 1e-4.
     pub cg_tolerance: f64,
     /// The most conjugate-gradient iterations per Newton iteration. Default 50. (A GPU frame
     /// records three dispatches for each one the solver allows, skipped once a solve is done.)

@@ -337,12 +337,13 @@ gpu_struct! {
         cg_most: u32,
         /// The current solve's iterations so far.
         solve_iterations: u32,
-        /// The current solve's `|b|`, N·s.
+        /// The norm the current solve's residual is measured against, N·s: its `|b|`, or the
+        /// largest of the substep's earlier Newton iterations where that is larger.
         b_norm: f32,
         /// The solver's relative tolerance (`solver.cg_tolerance`).
         tolerance: f32,
-        /// Padding to 32 bytes.
-        pad0: u32,
+        /// The largest `|b|` of the substep's Newton iterations so far, N·s (zero at its start).
+        largest_b_norm: f32,
         /// Padding to 32 bytes.
         pad1: u32,
     }
