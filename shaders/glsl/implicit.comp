@@ -37,13 +37,25 @@ layout(set = 0, binding = 4, std430) buffer PositionsOut { vec4 positions_out[];
 layout(set = 0, binding = 5, std430) buffer VelocitiesOut { vec4 velocities_out[]; };
 // Deepest penetration so far, m, as the bits of a non-negative float (see cloth_step.comp).
 layout(set = 0, binding = 6, std430) buffer MaxPenetration { uint max_penetration_bits; };
-// Conjugate gradients' vectors, four a vertex: Δ (m/s), r (N·s), p (m/s), q = A p (N·s).
+// Conjugate gradients' vectors, CG_SLOTS a vertex: Δ (m/s) at slot 0, r (N·s) at 1, q = A p (N·s)
+// at 3, z = P r (m/s) at 4, and the direction p (m/s) of odd iterations at 2, of even ones at 5.
 layout(set = 0, binding = 7, std430) buffer Cg { vec4 cg[]; };
+const uint CG_SLOTS = 6u;
+
+// The slot of iteration k's search direction p.
+uint direction_slot(uint k) {
+    return (k & 1u) == 1u ? 2u : 5u;
+}
+
+// The partials' section of iteration k's p·q.
+uint product_section(uint k) {
+    return (k & 1u) == 1u ? 1u : 3u;
+}
 // Five a vertex: the rows of the inverse of its diagonal block of A (1/kg), with the right-hand
 // side b (N·s) in their w; its contacts' block
 // h C_c + h² K_c (kg) as (xx, yy, zz, xy) and (xz, yz).
 layout(set = 0, binding = 8, std430) buffer Blocks { vec4 blocks[]; };
-// The workgroups' partial sums: three sections of partial_count() each.
+// The workgroups' partial sums: four sections of partial_count() each (implicit.wgsl).
 layout(set = 0, binding = 9, std430) buffer Partials { vec2 partials[]; };
 layout(set = 0, binding = 10, std430) buffer Counters { CgCounters counters; };
 // Per CG iteration k: r·z at its start (the bits of a float) and 1 once the solve is done.
@@ -296,9 +308,9 @@ void change_of(uint j, out vec3 dx, out vec3 dv) {
 vec2 linearise(uint i, bool first) {
     vec4 p_bar = positions_out[i];
     if (p_bar.w <= 0.0) {
-        cg[4u * i] = vec4(0.0);
-        cg[4u * i + 1u] = vec4(0.0);
-        cg[4u * i + 2u] = vec4(0.0);
+        cg[CG_SLOTS * i] = vec4(0.0);
+        cg[CG_SLOTS * i + 1u] = vec4(0.0);
+        cg[CG_SLOTS * i + direction_slot(1u)] = vec4(0.0);
         blocks[5u * i] = vec4(1.0, 0.0, 0.0, 0.0);
         blocks[5u * i + 1u] = vec4(0.0, 1.0, 0.0, 0.0);
         blocks[5u * i + 2u] = vec4(0.0, 0.0, 1.0, 0.0);
@@ -378,9 +390,9 @@ vec2 linearise(uint i, bool first) {
     vec3 b = (f + pull - drop) * h - (v - v0) * m;
     Mat3 pre = mat3_inverse_or_identity(diagonal);
     vec3 z = mat3_mul(pre, b);
-    cg[4u * i] = vec4(0.0);
-    cg[4u * i + 1u] = vec4(b, 0.0);
-    cg[4u * i + 2u] = vec4(z, 0.0);
+    cg[CG_SLOTS * i] = vec4(0.0);
+    cg[CG_SLOTS * i + 1u] = vec4(b, 0.0);
+    cg[CG_SLOTS * i + direction_slot(1u)] = vec4(z, 0.0);
     blocks[5u * i] = vec4(pre.r0, b.x);
     blocks[5u * i + 1u] = vec4(pre.r1, b.y);
     blocks[5u * i + 2u] = vec4(pre.r2, b.z);
@@ -395,14 +407,28 @@ vec3 preconditioned(uint i, vec3 r) {
     return mat3_mul(p, r);
 }
 
-// Passes 3 and 4: q = A p at vertex i (zero at a pinned one, whose p is read as zero); returns p·q.
-float apply_system(uint i) {
+// Iteration k's direction p at vertex j: for k = 1 the linearisation's; for k > 1 formed from
+// iteration k − 1's as z + β p (pass 6 of the reference's conjugate_gradients).
+vec3 direction(uint j, uint k, float beta) {
+    if (k == 1u) {
+        return cg[CG_SLOTS * j + direction_slot(1u)].xyz;
+    }
+    return cg[CG_SLOTS * j + 4u].xyz + cg[CG_SLOTS * j + direction_slot(k - 1u)].xyz * beta;
+}
+
+// Passes 3 and 4: q = A p at vertex i (zero at a pinned one, whose p is read as zero) for
+// iteration k's direction, which pass 4 forms at the vertex (and writes to its slot) and at each
+// neighbour (`direction`); returns p·q.
+float apply_system(uint i, uint k, float beta) {
     vec4 p_bar = positions_out[i];
+    vec3 p_i = direction(i, k, beta);
+    if (k > 1u) {
+        cg[CG_SLOTS * i + direction_slot(k)] = vec4(p_i, 0.0);
+    }
     if (p_bar.w <= 0.0) {
-        cg[4u * i + 3u] = vec4(0.0);
+        cg[CG_SLOTS * i + 3u] = vec4(0.0);
         return 0.0;
     }
-    vec3 p_i = cg[4u * i + 2u].xyz;
     vec3 q = p_i * params.vertex_mass;
     uint nx = params.grid_nx;
     uint vi = i % nx;
@@ -418,7 +444,7 @@ float apply_system(uint i) {
                 continue;
             }
             vec4 x_j = positions_out[j];
-            vec3 p_j = x_j.w > 0.0 ? cg[4u * j + 2u].xyz : vec3(0.0);
+            vec3 p_j = x_j.w > 0.0 ? direction(j, k, beta) : vec3(0.0);
             SpringBlocks b = spring_blocks(p_bar.xyz, x_j.xyz, spring.kind, spring.rest_length);
             q += mat3_mul(b.system, p_i - p_j);
         }
@@ -429,7 +455,7 @@ float apply_system(uint i) {
         q += vec3(d.x * p_i.x + d.w * p_i.y + e.x * p_i.z, d.w * p_i.x + d.y * p_i.y + e.y * p_i.z,
                   e.x * p_i.x + e.y * p_i.y + d.z * p_i.z);
     }
-    cg[4u * i + 3u] = vec4(q, 0.0);
+    cg[CG_SLOTS * i + 3u] = vec4(q, 0.0);
     return dot(p_i, q);
 }
 
@@ -475,12 +501,42 @@ vec2 total_of(uint section, uint local) {
     return workgroup_sum(sum, local);
 }
 
+// How CG iteration k ended: whether the solve is done, else the β of the next direction.
+struct IterationEnd {
+    bool done;
+    float beta;
+};
+
+// Ends CG iteration k from its totals, p·q and pass 5's r·z and r·r (uniform control flow): done
+// when it stopped (done before, or p·q ≤ 0) or converged (|r| ≤ tol |b|); else β = r·z' / r·z.
+// The first workgroup counts the iteration and records at k + 1 of `steps` the next r·z and
+// whether the solve is done.
+IterationEnd end_iteration(uint k, uint local, uint group) {
+    float pq = total_of(product_section(k), local).x;
+    vec2 next = total_of(2u, local);
+    float rz = uintBitsToFloat(steps[k].x);
+    bool stopped = steps[k].y != 0u || pq <= 0.0;
+    bool converged = !stopped && sqrt(next.y) <= counters.tolerance * counters.b_norm;
+    if (group == 0u && local == 0u) {
+        if (!stopped) {
+            counters.solve_iterations += 1u;
+            counters.cg += 1u;
+        }
+        if (stopped || converged) {
+            steps[k + 1u] = uvec2(steps[k].x, 1u);
+        } else {
+            steps[k + 1u] = uvec2(floatBitsToUint(next.x), 0u);
+        }
+    }
+    return IterationEnd(stopped || converged, next.x / rz);
+}
+
 // Pass 7: the Newton update of vertex i.
 void newton_update(uint i) {
     vec4 p = positions_in[i];
     float t = velocities_in[i].w;
     if (p.w > 0.0) {
-        vec3 v = velocities_out[i].xyz + cg[4u * i].xyz;
+        vec3 v = velocities_out[i].xyz + cg[CG_SLOTS * i].xyz;
         positions_out[i] = vec4(p.xyz + v * params.substep_dt, p.w);
         velocities_out[i] = vec4(v, t);
     } else {
@@ -503,7 +559,7 @@ vec2 line_search_slopes(uint i) {
     float h = params.substep_dt;
     uint nx = params.grid_nx;
     vec3 v = velocities_out[i].xyz;
-    vec3 change = cg[4u * i].xyz;
+    vec3 change = cg[CG_SLOTS * i].xyz;
     vec3 b = vec3(blocks[5u * i].w, blocks[5u * i + 1u].w, blocks[5u * i + 2u].w);
     bool stuck;
     vec3 n;
@@ -579,7 +635,7 @@ void line_search_step(uint i, uint r, vec2 slopes, bool records) {
     if (p.w <= 0.0 || !b.open) {
         return;
     }
-    vec3 v = velocities_out[i].xyz + cg[4u * i].xyz * (secant(b) - trial);
+    vec3 v = velocities_out[i].xyz + cg[CG_SLOTS * i].xyz * (secant(b) - trial);
     positions_out[i] = vec4(p.xyz + v * params.substep_dt, p.w);
     velocities_out[i] = vec4(v, velocities_out[i].w);
 }
@@ -644,6 +700,7 @@ void main() {
         write_partial(terms, 0u, local, group);
     } else if (IMPLICIT_PASS == 3u || IMPLICIT_PASS == 4u) {
         bool done;
+        float beta = 0.0;
         if (IMPLICIT_PASS == 3u) {
             // The solve's start: r·z and |b| of the linearisation. The residual is measured
             // against |b| or the substep's largest earlier |b| (implicit.rs's
@@ -662,49 +719,34 @@ void main() {
                 steps[1] = uvec2(floatBitsToUint(initial.x), done ? 1u : 0u);
             }
         } else {
-            done = steps[k].y != 0u;
+            IterationEnd end = end_iteration(k - 1u, local, group);
+            done = end.done;
+            beta = end.beta;
         }
         float pq = 0.0;
         if (vertex && !done) {
-            pq = apply_system(i);
+            pq = apply_system(i, k, beta);
         }
-        write_partial(vec2(pq, 0.0), 1u, local, group);
+        write_partial(vec2(pq, 0.0), product_section(k), local, group);
     } else if (IMPLICIT_PASS == 5u) {
-        float pq = total_of(1u, local).x;
+        float pq = total_of(product_section(k), local).x;
         bool stop = steps[k].y != 0u || pq <= 0.0;
         vec2 terms = vec2(0.0);
         if (vertex && !stop) {
             float alpha = uintBitsToFloat(steps[k].x) / pq;
             if (positions_out[i].w > 0.0) {
-                cg[4u * i] = vec4(cg[4u * i].xyz + cg[4u * i + 2u].xyz * alpha, 0.0);
+                vec3 p = cg[CG_SLOTS * i + direction_slot(k)].xyz;
+                cg[CG_SLOTS * i] = vec4(cg[CG_SLOTS * i].xyz + p * alpha, 0.0);
             }
-            vec3 r = cg[4u * i + 1u].xyz - cg[4u * i + 3u].xyz * alpha;
-            cg[4u * i + 1u] = vec4(r, 0.0);
-            terms = vec2(dot(r, preconditioned(i, r)), dot(r, r));
+            vec3 r = cg[CG_SLOTS * i + 1u].xyz - cg[CG_SLOTS * i + 3u].xyz * alpha;
+            cg[CG_SLOTS * i + 1u] = vec4(r, 0.0);
+            vec3 z = preconditioned(i, r);
+            cg[CG_SLOTS * i + 4u] = vec4(z, 0.0);
+            terms = vec2(dot(r, z), dot(r, r));
         }
         write_partial(terms, 2u, local, group);
     } else if (IMPLICIT_PASS == 6u) {
-        float pq = total_of(1u, local).x;
-        vec2 next = total_of(2u, local);
-        float rz = uintBitsToFloat(steps[k].x);
-        bool stopped = steps[k].y != 0u || pq <= 0.0;
-        bool converged = !stopped && sqrt(next.y) <= counters.tolerance * counters.b_norm;
-        if (group == 0u && local == 0u) {
-            if (!stopped) {
-                counters.solve_iterations += 1u;
-                counters.cg += 1u;
-            }
-            if (stopped || converged) {
-                steps[k + 1u] = uvec2(steps[k].x, 1u);
-            } else {
-                steps[k + 1u] = uvec2(floatBitsToUint(next.x), 0u);
-            }
-        }
-        if (vertex && !stopped && !converged) {
-            float beta = next.x / rz;
-            vec3 z = preconditioned(i, cg[4u * i + 1u].xyz);
-            cg[4u * i + 2u] = vec4(z + cg[4u * i + 2u].xyz * beta, 0.0);
-        }
+        end_iteration(k, local, group);
     } else if (IMPLICIT_PASS == 7u) {
         if (group == 0u && local == 0u) {
             counters.cg_most = max(counters.cg_most, counters.solve_iterations);

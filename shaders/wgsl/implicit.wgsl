@@ -11,10 +11,14 @@
 //                         preconditioner, the contacts' blocks; Δ = 0, r = b, p = z = P r;
 //                         partial sums of r·z and b·b;
 //     then cg_max_iterations times (iteration k, from a dynamic uniform):
-//       pass 3 or 4       (3: k = 1, which first sums the linearisation's partials into the
-//       (per vertex)      solve's start: r·z, |b|, done when b = 0) q = A p; partial sums of p·q;
-//       pass 5            α = r·z / p·q; Δ += α p, r −= α q; partial sums of r·z and r·r;
-//       pass 6            done when |r| ≤ tol |b| (or p·q ≤ 0); else β = r·z' / r·z, p = P r + β p;
+//       pass 3 or 4       3 (k = 1): sums the linearisation's partials into the solve's start
+//       (per vertex)      (r·z, |b|, done when b is within the tolerance); 4 (k > 1): ends
+//                         iteration k − 1 from its totals (done when |r| ≤ tol |b| or p·q ≤ 0,
+//                         else β = r·z' / r·z and the new direction p = z + β p, which each
+//                         vertex also forms for its neighbours from their z and old p); then
+//                         q = A p; partial sums of p·q;
+//       pass 5            α = r·z / p·q; Δ += α p, r −= α q, z = P r; partial sums of r·z and r·r;
+//     pass 6              ends the last iteration as pass 4 does (the counts, done);
 //     pass 7 (per vertex) v̄ += Δ, x̄ = x + h v̄ (the pins where their motion puts them);
 //     with the solver's line search, for each of the LINE_SEARCH_SLOPES slopes r it measures
 //     (cloth_core::solver; the dynamic uniform carries r):
@@ -31,8 +35,10 @@
 // workgroup memory and writes one partial sum; the pass that needs the total sums the partials
 // again in every workgroup (the same order everywhere, so every workgroup gets the same number),
 // and the first workgroup records what later passes read (the iteration's r·z and whether the
-// solve is done, at index k + 1 of `steps`). A pass skips its vertices' work once the solve is
-// done: the dispatches stay in the frame's one submission, the work stops. Units: m, kg, s, N/m.
+// solve is done, at index k of `steps`). A pass skips its vertices' work once the solve is
+// done: the dispatches stay in the frame's one submission, the work stops. A CG iteration is two
+// dispatches: pass 4 reads iteration k − 1's direction and p·q while it writes iteration k's, so
+// the two alternate between two slots (`direction_slot`, `product_section`). Units: m, kg, s, N/m.
 
 // Which pass this pipeline runs (see above).
 override IMPLICIT_PASS: u32 = 0u;
@@ -47,15 +53,17 @@ override IMPLICIT_PASS: u32 = 0u;
 @group(0) @binding(5) var<storage, read_write> velocities_out: array<vec4<f32>>;
 // Deepest penetration so far, m, as the bits of a non-negative f32 (see cloth_step.wgsl).
 @group(0) @binding(6) var<storage, read_write> max_penetration_bits: atomic<u32>;
-// Conjugate gradients' vectors, four a vertex: Δ (m/s) at 4 i, r (N·s) at 4 i + 1, p (m/s) at
-// 4 i + 2, q = A p (N·s) at 4 i + 3.
+// Conjugate gradients' vectors, CG_SLOTS a vertex: Δ (m/s) at slot 0, r (N·s) at 1, q = A p
+// (N·s) at 3, z = P r (m/s) at 4, and the direction p (m/s) of odd iterations at 2, of even ones
+// at 5.
 @group(0) @binding(7) var<storage, read_write> cg: array<vec4<f32>>;
 // Five a vertex: the rows of the inverse of its diagonal block of A (1/kg) at 5 i to 5 i + 2, with
 // the right-hand side b (N·s) in their w; its
 // contacts' block h C_c + h² K_c (kg) at 5 i + 3 (xx, yy, zz, xy) and 5 i + 4 (xz, yz).
 @group(0) @binding(8) var<storage, read_write> blocks: array<vec4<f32>>;
-// The workgroups' partial sums: three sections of partial_count() each (the linearisation's
-// and pass 5's r·z and b·b or r·r at 0 and 2, pass 3-4's p·q at 1).
+// The workgroups' partial sums: four sections of partial_count() each (the linearisation's
+// and pass 5's r·z and b·b or r·r at 0 and 2, pass 3-4's p·q at 1 for odd iterations and 3 for
+// even ones).
 @group(0) @binding(9) var<storage, read_write> partials: array<vec2<f32>>;
 @group(0) @binding(10) var<storage, read_write> counters: CgCounters;
 // Per CG iteration k: r·z at its start (the bits of an f32) and 1 once the solve is done.
@@ -69,6 +77,18 @@ override IMPLICIT_PASS: u32 = 0u;
 @group(0) @binding(14) var<storage, read> self_words: array<u32>;
 @group(0) @binding(15) var<storage, read> self_links: array<u32>;
 @group(0) @binding(16) var<storage, read_write> self_control: SelfControl;
+
+const CG_SLOTS: u32 = 6u;
+
+// The slot of iteration k's search direction p.
+fn direction_slot(k: u32) -> u32 {
+    return select(5u, 2u, (k & 1u) == 1u);
+}
+
+// The partials' section of iteration k's p·q.
+fn product_section(k: u32) -> u32 {
+    return select(3u, 1u, (k & 1u) == 1u);
+}
 
 // The hash's word at `at` (self_collision.wgsl).
 fn link(at: u32) -> u32 {
@@ -335,9 +355,9 @@ fn start(i: u32) {
 fn linearise(i: u32, first: bool) -> vec2<f32> {
     let p_bar = positions_out[i];
     if (p_bar.w <= 0.0) {
-        cg[4u * i] = vec4<f32>(0.0);
-        cg[4u * i + 1u] = vec4<f32>(0.0);
-        cg[4u * i + 2u] = vec4<f32>(0.0);
+        cg[CG_SLOTS * i] = vec4<f32>(0.0);
+        cg[CG_SLOTS * i + 1u] = vec4<f32>(0.0);
+        cg[CG_SLOTS * i + direction_slot(1u)] = vec4<f32>(0.0);
         blocks[5u * i] = vec4<f32>(1.0, 0.0, 0.0, 0.0);
         blocks[5u * i + 1u] = vec4<f32>(0.0, 1.0, 0.0, 0.0);
         blocks[5u * i + 2u] = vec4<f32>(0.0, 0.0, 1.0, 0.0);
@@ -416,9 +436,9 @@ fn linearise(i: u32, first: bool) -> vec2<f32> {
     let b = (f + pull - drop) * h - (v - v0) * m;
     let pre = mat3_inverse_or_identity(diagonal);
     let z = mat3_mul(pre, b);
-    cg[4u * i] = vec4<f32>(0.0);
-    cg[4u * i + 1u] = vec4<f32>(b, 0.0);
-    cg[4u * i + 2u] = vec4<f32>(z, 0.0);
+    cg[CG_SLOTS * i] = vec4<f32>(0.0);
+    cg[CG_SLOTS * i + 1u] = vec4<f32>(b, 0.0);
+    cg[CG_SLOTS * i + direction_slot(1u)] = vec4<f32>(z, 0.0);
     blocks[5u * i] = vec4<f32>(pre.r0, b.x);
     blocks[5u * i + 1u] = vec4<f32>(pre.r1, b.y);
     blocks[5u * i + 2u] = vec4<f32>(pre.r2, b.z);
@@ -433,14 +453,28 @@ fn preconditioned(i: u32, r: vec3<f32>) -> vec3<f32> {
     return mat3_mul(p, r);
 }
 
-// Passes 3 and 4: q = A p at vertex i (zero at a pinned one, whose p is read as zero); returns p·q.
-fn apply(i: u32) -> f32 {
+// Iteration k's direction p at vertex j: for k = 1 the linearisation's; for k > 1 formed from
+// iteration k − 1's as z + β p (pass 6 of the reference's conjugate_gradients).
+fn direction(j: u32, k: u32, beta: f32) -> vec3<f32> {
+    if (k == 1u) {
+        return cg[CG_SLOTS * j + direction_slot(1u)].xyz;
+    }
+    return cg[CG_SLOTS * j + 4u].xyz + cg[CG_SLOTS * j + direction_slot(k - 1u)].xyz * beta;
+}
+
+// Passes 3 and 4: q = A p at vertex i (zero at a pinned one, whose p is read as zero) for
+// iteration k's direction, which pass 4 forms at the vertex (and writes to its slot) and at each
+// neighbour (`direction`); returns p·q.
+fn apply(i: u32, k: u32, beta: f32) -> f32 {
     let p_bar = positions_out[i];
+    let p_i = direction(i, k, beta);
+    if (k > 1u) {
+        cg[CG_SLOTS * i + direction_slot(k)] = vec4<f32>(p_i, 0.0);
+    }
     if (p_bar.w <= 0.0) {
-        cg[4u * i + 3u] = vec4<f32>(0.0);
+        cg[CG_SLOTS * i + 3u] = vec4<f32>(0.0);
         return 0.0;
     }
-    let p_i = cg[4u * i + 2u].xyz;
     var q = p_i * params.vertex_mass;
     let nx = params.grid_nx;
     let vi = i % nx;
@@ -458,7 +492,7 @@ fn apply(i: u32) -> f32 {
             let x_j = positions_out[j];
             var p_j = vec3<f32>(0.0);
             if (x_j.w > 0.0) {
-                p_j = cg[4u * j + 2u].xyz;
+                p_j = direction(j, k, beta);
             }
             let b = spring_blocks(p_bar.xyz, x_j.xyz, spring.kind, spring.rest_length);
             q += mat3_mul(b.system, p_i - p_j);
@@ -470,7 +504,7 @@ fn apply(i: u32) -> f32 {
         q += vec3<f32>(d.x * p_i.x + d.w * p_i.y + e.x * p_i.z, d.w * p_i.x + d.y * p_i.y + e.y * p_i.z,
                        e.x * p_i.x + e.y * p_i.y + d.z * p_i.z);
     }
-    cg[4u * i + 3u] = vec4<f32>(q, 0.0);
+    cg[CG_SLOTS * i + 3u] = vec4<f32>(q, 0.0);
     return dot(p_i, q);
 }
 
@@ -516,12 +550,43 @@ fn total_of(section: u32, local: u32) -> vec2<f32> {
     return workgroup_sum(sum, local);
 }
 
-// Passes 7: the Newton update of vertex i.
+// How CG iteration k ended: whether the solve is done, else the β of the next direction.
+struct IterationEnd {
+    done: bool,
+    beta: f32,
+}
+
+// Ends CG iteration k from its totals, p·q and pass 5's r·z and r·r (uniform control flow): done
+// when it stopped (done before, or p·q ≤ 0) or converged (|r| ≤ tol |b|); else β = r·z' / r·z.
+// The first workgroup counts the iteration and records at k + 1 of `steps` the next r·z and
+// whether the solve is done.
+fn end_iteration(k: u32, local: u32, group: u32) -> IterationEnd {
+    let pq = total_of(product_section(k), local).x;
+    let next = total_of(2u, local);
+    let rz = bitcast<f32>(steps[k].x);
+    let was_done = steps[k].y != 0u;
+    let stopped = was_done | (pq <= 0.0);
+    let converged = !stopped & (sqrt(next.y) <= counters.tolerance * counters.b_norm);
+    if ((group == 0u) & (local == 0u)) {
+        if (!stopped) {
+            counters.solve_iterations += 1u;
+            counters.cg += 1u;
+        }
+        if (stopped | converged) {
+            steps[k + 1u] = vec2<u32>(steps[k].x, 1u);
+        } else {
+            steps[k + 1u] = vec2<u32>(bitcast<u32>(next.x), 0u);
+        }
+    }
+    return IterationEnd(stopped | converged, next.x / rz);
+}
+
+// Pass 7: the Newton update of vertex i.
 fn newton_update(i: u32) {
     let p = positions_in[i];
     let t = velocities_in[i].w;
     if (p.w > 0.0) {
-        let v = velocities_out[i].xyz + cg[4u * i].xyz;
+        let v = velocities_out[i].xyz + cg[CG_SLOTS * i].xyz;
         positions_out[i] = vec4<f32>(p.xyz + v * params.substep_dt, p.w);
         velocities_out[i] = vec4<f32>(v, t);
     } else {
@@ -543,7 +608,7 @@ fn line_search_slopes(i: u32) -> vec2<f32> {
     let h = params.substep_dt;
     let nx = params.grid_nx;
     let v = velocities_out[i].xyz;
-    let change = cg[4u * i].xyz;
+    let change = cg[CG_SLOTS * i].xyz;
     let b = vec3<f32>(blocks[5u * i].w, blocks[5u * i + 1u].w, blocks[5u * i + 2u].w);
     let f = iterate_force(i, i % nx, i / nx, p_bar.xyz, v, velocities_in[i].w + h).force;
     return vec2<f32>(-dot(change, b), dot(change, (v - velocities_in[i].xyz) * params.vertex_mass - f * h));
@@ -623,7 +688,7 @@ fn line_search_step(i: u32, r: u32, slopes: vec2<f32>, records: bool) {
     if ((p.w <= 0.0) | !b.open) {
         return;
     }
-    let v = velocities_out[i].xyz + cg[4u * i].xyz * (secant(b) - trial);
+    let v = velocities_out[i].xyz + cg[CG_SLOTS * i].xyz * (secant(b) - trial);
     positions_out[i] = vec4<f32>(p.xyz + v * params.substep_dt, p.w);
     velocities_out[i] = vec4<f32>(v, velocities_out[i].w);
 }
@@ -695,6 +760,7 @@ fn implicit(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
         }
         case 3u, 4u: {
             var done = false;
+            var beta = 0.0;
             if (IMPLICIT_PASS == 3u) {
                 // The solve's start: r·z and |b| of the linearisation. The residual is measured
                 // against |b| or the substep's largest earlier |b| (implicit.rs's
@@ -713,52 +779,36 @@ fn implicit(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
                     steps[1] = vec2<u32>(bitcast<u32>(initial.x), select(0u, 1u, done));
                 }
             } else {
-                done = steps[k].y != 0u;
+                let end = end_iteration(k - 1u, local, group);
+                done = end.done;
+                beta = end.beta;
             }
             var pq = 0.0;
             if (vertex & !done) {
-                pq = apply(i);
+                pq = apply(i, k, beta);
             }
-            write_partial(vec2<f32>(pq, 0.0), 1u, local, group);
+            write_partial(vec2<f32>(pq, 0.0), product_section(k), local, group);
         }
         case 5u: {
-            let pq = total_of(1u, local).x;
+            let pq = total_of(product_section(k), local).x;
             let stop = (steps[k].y != 0u) | (pq <= 0.0);
             var terms = vec2<f32>(0.0);
             if (vertex & !stop) {
                 let alpha = bitcast<f32>(steps[k].x) / pq;
                 if (positions_out[i].w > 0.0) {
-                    cg[4u * i] = vec4<f32>(cg[4u * i].xyz + cg[4u * i + 2u].xyz * alpha, 0.0);
+                    let p = cg[CG_SLOTS * i + direction_slot(k)].xyz;
+                    cg[CG_SLOTS * i] = vec4<f32>(cg[CG_SLOTS * i].xyz + p * alpha, 0.0);
                 }
-                let r = cg[4u * i + 1u].xyz - cg[4u * i + 3u].xyz * alpha;
-                cg[4u * i + 1u] = vec4<f32>(r, 0.0);
-                terms = vec2<f32>(dot(r, preconditioned(i, r)), dot(r, r));
+                let r = cg[CG_SLOTS * i + 1u].xyz - cg[CG_SLOTS * i + 3u].xyz * alpha;
+                cg[CG_SLOTS * i + 1u] = vec4<f32>(r, 0.0);
+                let z = preconditioned(i, r);
+                cg[CG_SLOTS * i + 4u] = vec4<f32>(z, 0.0);
+                terms = vec2<f32>(dot(r, z), dot(r, r));
             }
             write_partial(terms, 2u, local, group);
         }
         case 6u: {
-            let pq = total_of(1u, local).x;
-            let next = total_of(2u, local);
-            let rz = bitcast<f32>(steps[k].x);
-            let was_done = steps[k].y != 0u;
-            let stopped = was_done | (pq <= 0.0);
-            let converged = !stopped & (sqrt(next.y) <= counters.tolerance * counters.b_norm);
-            if ((group == 0u) & (local == 0u)) {
-                if (!stopped) {
-                    counters.solve_iterations += 1u;
-                    counters.cg += 1u;
-                }
-                if (stopped | converged) {
-                    steps[k + 1u] = vec2<u32>(steps[k].x, 1u);
-                } else {
-                    steps[k + 1u] = vec2<u32>(bitcast<u32>(next.x), 0u);
-                }
-            }
-            if (vertex & !stopped & !converged) {
-                let beta = next.x / rz;
-                let z = preconditioned(i, cg[4u * i + 1u].xyz);
-                cg[4u * i + 2u] = vec4<f32>(z + cg[4u * i + 2u].xyz * beta, 0.0);
-            }
+            end_iteration(k, local, group);
         }
         case 7u: {
             if ((group == 0u) & (local == 0u)) {

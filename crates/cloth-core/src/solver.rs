@@ -36,7 +36,7 @@ pub struct SolverSpec {
     /// the same work). Default 1e-4.
     pub cg_tolerance: f64,
     /// The most conjugate-gradient iterations per Newton iteration. Default 50. (A GPU frame
-    /// records three dispatches for each one the solver allows, skipped once a solve is done.)
+    /// records two dispatches for each one the solver allows, skipped once a solve is done.)
     pub cg_max_iterations: u32,
     /// Vertex Block Descent sweeps (over the five vertex colours) per substep. Default 10.
     pub vbd_iterations: u32,

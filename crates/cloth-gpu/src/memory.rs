@@ -49,13 +49,15 @@ impl MemoryEstimate {
                 let sweeps = COLOR_RANGE_STRIDE as u128 * u128::from(scene.solver.vbd_iterations.max(1));
                 (2 * state + history + sweeps, state.max(history))
             }
-            // CG's four vectors and the five blocks a vertex, the partial sums (three vec2 a
-            // workgroup of the default 256 invocations), the counters, the iterations' steps and
-            // uniform blocks.
+            // CG's vectors and the five blocks a vertex, the partial sums (a vec2 a workgroup of
+            // the default 256 invocations in each section), the counters, the iterations' steps
+            // and uniform blocks.
             Integrator::BackwardEuler => {
                 let iterations = u128::from(scene.solver.cg_max_iterations.max(1));
-                let partials = 24 * vertices.div_ceil(256);
-                (9 * state + partials + 32 + 8 * (iterations + 2) + COLOR_RANGE_STRIDE as u128 * iterations, 5 * state)
+                let vectors = u128::from(crate::plan::CG_VECTORS) * state;
+                let partials = u128::from(crate::plan::CG_PARTIAL_SECTIONS) * 8 * vertices.div_ceil(256);
+                let bytes = vectors + 5 * state + partials + 32 + 8 * (iterations + 2);
+                (bytes + COLOR_RANGE_STRIDE as u128 * iterations, vectors.max(5 * state))
             }
         };
         // The colliders' uniform block, and 4 bytes a distance-field sample of each mesh.

@@ -959,9 +959,17 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
     Schedule { substep, tiled: None, packed: None, self_collision: checks }
 }
 
+/// The CG vectors a vertex keeps (`vec4` each, `implicit.wgsl` lists them): Δ, r, q, z = P r and
+/// the search direction twice, since a pass reads the last iteration's while it writes the next.
+pub const CG_VECTORS: u64 = 6;
+/// Sections of backward Euler's partial sums, one `vec2` a workgroup each: the linearisation's
+/// and the line search's, p·q of odd iterations, r·z and r·r, p·q of even iterations.
+pub const CG_PARTIAL_SECTIONS: u64 = 4;
+
 /// Backward Euler (`implicit`): start; per Newton iteration a linearisation, per CG iteration its
-/// three passes (the product with A, the update, the new direction), the Newton update and, with
-/// the line search, two passes (the slopes, the step) for each slope it measures; finish.
+/// two passes (the previous iteration's end, its new direction and the product with A; the
+/// update), the last iteration's end, the Newton update and, with the line search, two passes
+/// (the slopes, the step) for each slope it measures; finish.
 /// Every iteration's dispatches are recorded (a solve that is done skips their work): the frame
 /// stays one submission with no host round trip.
 fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
@@ -971,9 +979,9 @@ fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
     let (threads, max) = (b.tuning.workgroup_size, limits.max_workgroups_per_dimension);
     let vertices = spilled_workgroups(n as u32, threads, max);
     let partial_count = n.div_ceil(u64::from(threads));
-    let cg = b.buffer("backward Euler CG vectors", storage, 64 * n, None);
+    let cg = b.buffer("backward Euler CG vectors", storage, CG_VECTORS * 16 * n, None);
     let blocks = b.buffer("backward Euler blocks", storage, 80 * n, None);
-    let partials = b.buffer("backward Euler partial sums", storage, 3 * 8 * partial_count, None);
+    let partials = b.buffer("backward Euler partial sums", storage, CG_PARTIAL_SECTIONS * 8 * partial_count, None);
     let counters = GpuCgCounters { tolerance: solver.cg_tolerance as f32, ..Default::default() };
     let counters = b.filled("backward Euler CG counters", storage, bytemuck::bytes_of(&counters));
     // The CG iterations' entries, then three for each slope the line search measures.
@@ -1001,9 +1009,9 @@ fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
         "linearise (first iteration)",
         "linearise",
         "CG product (first iteration)",
-        "CG product",
+        "CG direction and product",
         "CG update",
-        "CG direction",
+        "CG end (last iteration)",
         "Newton update",
         "finish",
         "line search slopes",
@@ -1028,8 +1036,8 @@ fn backward_euler(b: &mut Builder, limits: &DeviceLimits) -> Schedule {
             let offset = GpuCgStep::offset(k);
             substep.push(pass(if k == 1 { 3 } else { 4 }, offset));
             substep.push(pass(5, offset));
-            substep.push(pass(6, offset));
         }
+        substep.push(pass(6, GpuCgStep::offset(solver.cg_max_iterations)));
         substep.push(pass(7, 0));
         if solver.line_search {
             for r in 1..=LINE_SEARCH_SLOPES {
