@@ -233,7 +233,7 @@ pub(crate) fn parse_integrator(text: &str) -> Result<Integrator, String> {
     })
 }
 
-fn parse_solver(text: &str) -> Result<cloth_core::solver::SolverSpec, String> {
+pub(crate) fn parse_solver(text: &str) -> Result<cloth_core::solver::SolverSpec, String> {
     cloth_core::solver::SolverSpec::from_ron_str(text).map_err(|e| {
         format!(
             "'{text}': {e} (expected the scene's solver field, e.g. '(newton_iterations: 8, cg_max_iterations: 300)')"

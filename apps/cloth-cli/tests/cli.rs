@@ -738,3 +738,48 @@ fn run_reports_what_the_implicit_solvers_spent() {
     let plain = json(&["run", "--grid", "8x8", "--frames", "1", "--json"]);
     assert!(plain["solver_iterations"].is_null(), "semi-implicit Euler has no solver");
 }
+
+/// `cloth study accuracy --solver` sets the implicit integrators' iterations for every scene (the
+/// CSV's iterations a substep are the VBD sweeps asked for), and an invalid setting is refused
+/// with the field named.
+#[test]
+fn study_accuracy_takes_the_solver_for_every_scene() {
+    let dir = std::env::temp_dir().join(format!("cloth-study-solver-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("accuracy.csv");
+    let study = |solver: &str| {
+        cloth(&[
+            "study",
+            "accuracy",
+            "scenes/hanging.ron",
+            "--grid",
+            "4x4",
+            "--duration",
+            "0.05",
+            "--substeps",
+            "1",
+            "--integrators",
+            "vbd",
+            "--backends",
+            "cpu",
+            "--no-bisection",
+            "--solver",
+            solver,
+            "--csv",
+            csv.to_str().unwrap(),
+        ])
+    };
+    let out = study("(vbd_iterations: 3, chebyshev_rho: 0.5)");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = header.iter().position(|c| *c == "solver_iterations_per_substep").expect("the iterations column");
+    let row: Vec<&str> = lines.next().expect("one run").split(',').collect();
+    assert_eq!(row[column].parse::<f64>().unwrap(), 3.0, "{text}");
+    let refused = study("(chebyshev_rho: 1.5)");
+    assert!(!refused.status.success());
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(stderr.contains("chebyshev_rho"), "the error names the field: {stderr}");
+    std::fs::remove_dir_all(&dir).ok();
+}

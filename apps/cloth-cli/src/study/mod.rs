@@ -51,6 +51,11 @@ pub struct AccuracyArgs {
     /// Grid resolution override for every scene, e.g. 16x16.
     #[arg(long, value_parser = crate::parse_grid)]
     grid: Option<[u32; 2]>,
+    /// The implicit integrators' solver settings for every scene instead of its own, written as
+    /// the scene's `solver` field, e.g. '(chebyshev_rho: 0.8)' (fields left out take their
+    /// defaults; see docs/model.md).
+    #[arg(long, value_parser = crate::parse_solver)]
+    solver: Option<cloth_core::solver::SolverSpec>,
     /// RMS error, m, a run must stay within for the report's largest step with a bounded error.
     #[arg(long, default_value_t = 1e-2)]
     error_bound: f64,
@@ -172,6 +177,16 @@ pub(crate) fn plan(args: &AccuracyArgs) -> Result<Plan> {
         if let Some(g) = args.grid {
             base.cloth.resolution = g;
             base.validate().with_context(|| format!("{} with --grid is invalid", path.display()))?;
+        }
+        if let Some(solver) = args.solver {
+            base.solver = solver;
+            // The solver's fields are checked for the integrators that read them.
+            for &integrator in &integrators {
+                let scene = Scene { integrator, ..base.clone() };
+                scene.validate().with_context(|| {
+                    format!("{} with --solver is invalid for {}", path.display(), integrator.name())
+                })?;
+            }
         }
         let frames = (args.duration / base.time.frame_dt).round().max(1.0);
         if frames > MAX_FRAMES as f64 {
