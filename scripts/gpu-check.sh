@@ -8,9 +8,10 @@
 #   conformance  the conformance suite and the block-order test with CI=1 (a missing adapter
 #                fails), then `cloth run` on each GPU backend
 #   stability    the stability suite's GPU cases with CI=1, the collider and self-collision cases
-#                at their scenes' own size on every backend, then the soak at a million substeps on
-#                each backend (SOAK_SECONDS each, default 200: XPBD's million substeps do not end
-#                in that; 0 skips the soak)
+#                at their scenes' own size on every backend, the drape and the stiff drape at 256²
+#                and one substep a frame with backward Euler and VBD, then the soak at a million
+#                substeps on each backend (SOAK_SECONDS each, default 200: XPBD's million substeps
+#                do not end in that; 0 skips the soak)
 #   bench        `cloth bench` on both GPU backends: grids 32² to 2048², 16, 64 and scaled substeps;
 #                then semi-implicit Euler, backward Euler and VBD at 256² and 1024², 1 and 16 substeps
 #   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs (EFFECT_GRIDS,
@@ -68,6 +69,18 @@ if [[ " $checks " == *" stability "* ]]; then
   echo "== stability: the collider and self-collision scenes at their own size (CLOTH_FULL_SIZE)"
   CI=1 CLOTH_FULL_SIZE=1 "$stability" --test-threads 2 --nocapture floor tilted cloth_falls heap twist folded sliding 2>&1 |
     tee "$OUT/stability-full.txt" | grep -E "^test |test result|panicked|penetration|self-intersections" | tail -80
+  echo "== the drape and the stiff drape at 256², one substep a frame, with the implicit integrators"
+  for scene in drape stiff_drape; do
+    for integrator in backward-euler vbd; do
+      for b in wgpu vulkano; do
+        echo "-- $scene $integrator $b" | tee -a "$OUT/implicit-256.txt"
+        "$CLOTH" run "scenes/$scene.ron" --backend "$b" --grid 256x256 --substeps 1 --frames 120 \
+          --integrator "$integrator" --json 2>&1 |
+          grep -E '"(peak_j|nan_count|max_penetration_fraction_of_radius|wall_ms_per_frame|newton|cg|vbd)"' |
+          tee -a "$OUT/implicit-256.txt"
+      done
+    done
+  done
   [ "${SOAK_SECONDS:-200}" = 0 ] || for b in wgpu vulkano; do
     echo "== the soak at a million substeps on $b (${SOAK_SECONDS:-200} s at most)"
     CI=1 CLOTH_SOAK_SUBSTEPS=1000000 timeout "${SOAK_SECONDS:-200}" "$stability" --nocapture "$b::soak" 2>&1 |
@@ -81,7 +94,7 @@ if [[ " $checks " == *" bench "* ]]; then
     --csv "$OUT/bench.csv" 2>&1 | tee "$OUT/bench.txt"
   echo "== bench: the implicit integrators at their default solver settings"
   "$CLOTH" bench --backends wgpu,vulkano --grids 256,1024 --substeps 1,16 --integrators euler,backward-euler,vbd \
-    --frames 10 --repeats 3 --csv "$OUT/bench-implicit.csv" 2>&1 | tee "$OUT/bench-implicit.txt"
+    --frames 5 --repeats 3 --csv "$OUT/bench-implicit.csv" 2>&1 | tee "$OUT/bench-implicit.txt"
 fi
 
 if [[ " $checks " == *" effects "* ]]; then
