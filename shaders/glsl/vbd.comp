@@ -15,6 +15,8 @@
 //                           friction), optionally extrapolated by Chebyshev's weight of the sweep;
 //   pass 2 (per vertex)     v = (x − x⁰)/h (with SelfCollision, the speed limit), deepest
 //                           penetration, the velocity the next prediction compares with.
+// With the solver's vbd_multigrid_every, a coarse correction (cloth_core::multigrid) comes
+// before every that many sweeps, passes 3 to 9 as vbd.wgsl describes them.
 // The vertices of colour c are those with (i + 2j) mod 5 = c (cloth_core::coloring::vertex_color).
 // Units: m, kg, s, N/m.
 
@@ -58,14 +60,26 @@ layout(set = 0, binding = 8, std430) buffer LastVelocities { vec4 last_velocitie
 // Chebyshev's history (a placeholder without it): each vertex's iterate one sweep back at 2 i,
 // two sweeps back at 2 i + 1, m.
 layout(set = 0, binding = 9, std430) buffer History { vec4 history[]; };
-// cloth_gpu::layout::GpuVbdSweep (16 bytes): the sweep pass 1 belongs to, selected by a dynamic
-// offset.
+// cloth_gpu::layout::GpuVbdSweep (48 bytes): the sweep pass 1 belongs to, or the level of a
+// multigrid pass (offsets in vec4s of the multigrid buffer), selected by a dynamic offset.
 layout(set = 0, binding = 10, std140) uniform VbdSweep {
     float omega;            // Chebyshev's weight of the sweep
     uint chebyshev;         // 1: Chebyshev acceleration on
-    uint pad0;
-    uint pad1;
+    uint nx;                // this level's nodes along i (level 0: the grid's vertices)
+    uint ny;                // and along j
+    uint coarse_nx;         // the next coarser level's nodes along i
+    uint coarse_ny;         // and along j
+    uint stencil;           // this level's stencil, 27 vec4s a node
+    uint vectors;           // this level's b, then its e
+    uint partials;          // this level's partial sums
+    uint coarse_stencil;    // the next level's stencil
+    uint coarse_vectors;    // the next level's b, then its e
+    uint coarse_partials;   // the next level's partial sums
 } sweep;
+
+// The multigrid correction's levels: each node's 3 × 3 stencil of 3 × 3 blocks (27 rows), the
+// right-hand sides b, the corrections e, the partial sums (a placeholder without it).
+layout(set = 0, binding = 15, std430) buffer Multigrid { vec4 multigrid[]; };
 
 // The position of vertex `index` in the state read, m (for grid.glsl's grid_normal).
 vec3 position_in(uint index) {
@@ -271,27 +285,12 @@ void predict(uint i) {
     }
 }
 
-// Pass 1: the vertex of colour VBD_COLOR that invocation `k` moves (row j, every fifth column
-// from the row's first of the colour).
-void step_color(uint k) {
-    uint nx = params.grid_nx;
-    uint per_row = (nx + 4u) / 5u;
-    uint j = k / per_row;
-    if (j >= params.grid_ny) {
-        return;
-    }
-    uint i = (VBD_COLOR + 5u - (2u * j) % 5u) % 5u + 5u * (k % per_row);
-    if (i >= nx) {
-        return;
-    }
-    uint index = j * nx + i;
-    vec4 p = positions_out[index];
-    if (p.w <= 0.0) {
-        return;
-    }
+// The local terms of free vertex `index` at (i, j), where the sweeps have it (positions_out):
+// inertia, its springs and its colliders (cloth_core::reference's vbd_substep, local_terms).
+LocalTerms vertex_terms(uint index, uint i, uint j) {
     float h = params.substep_dt;
     float m = params.vertex_mass;
-    vec3 x = p.xyz;
+    vec3 x = positions_out[index].xyz;
     vec3 x0 = positions_in[index].xyz;
     float w = m / (h * h);
     LocalTerms t = LocalTerms((x - predicted[index].xyz) * w, mat3_scaled(mat3_identity(), w));
@@ -326,23 +325,51 @@ void step_color(uint k) {
             }
         }
     }
+    return t;
+}
+
+// Where a move of a vertex from `x` to `moved`, at the substep's end time `t_end`, stops: at the
+// surface of a collider it would enter from outside (cloth_core::vbd::surface_fraction).
+vec3 stop_at_surfaces(vec3 x, vec3 moved, float t_end) {
+    float fraction = 1.0;
+    for (uint c = 0u; c < params.collider_count; c++) {
+        vec3 center = collider_center(c, t_end);
+        float start = collider_distance(c, center, x);
+        float end = collider_distance(c, center, moved);
+        if (start >= 0.0 && end < 0.0) {
+            fraction = min(fraction, start / (start - end));
+        }
+    }
+    if (fraction < 1.0) {
+        return x + (moved - x) * fraction;
+    }
+    return moved;
+}
+
+// Pass 1: the vertex of colour VBD_COLOR that invocation `k` moves (row j, every fifth column
+// from the row's first of the colour).
+void step_color(uint k) {
+    uint nx = params.grid_nx;
+    uint per_row = (nx + 4u) / 5u;
+    uint j = k / per_row;
+    if (j >= params.grid_ny) {
+        return;
+    }
+    uint i = (VBD_COLOR + 5u - (2u * j) % 5u) % 5u + 5u * (k % per_row);
+    if (i >= nx) {
+        return;
+    }
+    uint index = j * nx + i;
+    vec4 p = positions_out[index];
+    if (p.w <= 0.0) {
+        return;
+    }
+    vec3 x = p.xyz;
+    LocalTerms t = vertex_terms(index, i, j);
     vec3 moved = newton_step(x, t);
     if (EFFECT_CONTACT) {
-        // A step from outside a collider into it stops at its surface
-        // (cloth_core::vbd::surface_fraction).
-        float t_end = velocities_in[index].w + h;
-        float fraction = 1.0;
-        for (uint c = 0u; c < params.collider_count; c++) {
-            vec3 center = collider_center(c, t_end);
-            float start = collider_distance(c, center, x);
-            float end = collider_distance(c, center, moved);
-            if (start >= 0.0 && end < 0.0) {
-                fraction = min(fraction, start / (start - end));
-            }
-        }
-        if (fraction < 1.0) {
-            moved = x + (moved - x) * fraction;
-        }
+        // A step from outside a collider into it stops at its surface.
+        moved = stop_at_surfaces(x, moved, velocities_in[index].w + params.substep_dt);
     }
     if (sweep.chebyshev != 0u) {
         vec3 before = history[2u * index + 1u].xyz;
@@ -403,7 +430,318 @@ vec4 run_pass() {
     return finish(k);
 }
 
+// The multigrid correction (passes 3 to 9; cloth_core::multigrid).
+
+vec3 mat3_mul(Mat3 m, vec3 v) {
+    return vec3(dot(m.r0, v), dot(m.r1, v), dot(m.r2, v));
+}
+
+// The stencil entry of the node at (di, dj) from a node (cloth_core::multigrid::slot).
+uint mg_slot(int di, int dj) {
+    return uint((di + 1) + 3 * (dj + 1));
+}
+
+// Block `s` of node `node` of the stencil at `base`.
+Mat3 mg_block(uint base, uint node, uint s) {
+    uint at = base + 27u * node + 3u * s;
+    return Mat3(multigrid[at].xyz, multigrid[at + 1u].xyz, multigrid[at + 2u].xyz);
+}
+
+void mg_store_block(uint base, uint node, uint s, Mat3 m) {
+    uint at = base + 27u * node + 3u * s;
+    multigrid[at] = vec4(m.r0, 0.0);
+    multigrid[at + 1u] = vec4(m.r1, 0.0);
+    multigrid[at + 2u] = vec4(m.r2, 0.0);
+}
+
+Mat3 mat3_zero() {
+    return Mat3(vec3(0.0), vec3(0.0), vec3(0.0));
+}
+
+// This level's correction at node `node`.
+vec3 mg_e(uint node) {
+    return multigrid[sweep.vectors + sweep.nx * sweep.ny + node].xyz;
+}
+
+// (A e) at node (i, j) of this level, leaving out the node's own block when `skip_self`.
+vec3 mg_apply(uint i, uint j, bool skip_self) {
+    uint node = j * sweep.nx + i;
+    vec3 sum = vec3(0.0);
+    for (int dj = -1; dj <= 1; dj++) {
+        for (int di = -1; di <= 1; di++) {
+            if (skip_self && di == 0 && dj == 0) {
+                continue;
+            }
+            int ni = int(i) + di;
+            int nj = int(j) + dj;
+            if (ni < 0 || nj < 0 || ni >= int(sweep.nx) || nj >= int(sweep.ny)) {
+                continue;
+            }
+            sum += mat3_mul(mg_block(sweep.stencil, node, mg_slot(di, dj)), mg_e(uint(nj) * sweep.nx + uint(ni)));
+        }
+    }
+    return sum;
+}
+
+// The coupling block −(K_s + C_s/h) of vertex (i, j)'s spring to its neighbour (i + di, j + dj), if
+// both are free, added to the level-1 stencil entry of the neighbour's aggregate.
+void mg_add_coupling(inout Mat3 blocks[9], vec3 x, int i, int j, int di, int dj, uint kind, float rest_length) {
+    int ni = i + di;
+    int nj = j + dj;
+    if (ni < 0 || nj < 0 || ni >= int(params.grid_nx) || nj >= int(params.grid_ny)) {
+        return;
+    }
+    vec4 other = positions_out[uint(nj) * params.grid_nx + uint(ni)];
+    if (other.w <= 0.0) {
+        return;
+    }
+    Mat3 k = spring_stiffness_block(x, other.xyz, rest_length, params.stiffness[kind]);
+    if (EFFECT_SPRING_DAMPING) {
+        float c = params.damping[kind];
+        k = mat3_add(k, mat3_scaled(spring_damping_block(x, other.xyz, c), 1.0 / params.substep_dt));
+    }
+    uint s = mg_slot(ni / 2 - i / 2, nj / 2 - j / 2);
+    blocks[s] = mat3_add(blocks[s], mat3_scaled(k, -1.0));
+}
+
+// Pass 3: level-1 node k from its 2 × 2 vertices (cloth_core::multigrid::first_level).
+void mg_assemble(uint k) {
+    uint cnx = sweep.coarse_nx;
+    if (k >= cnx * sweep.coarse_ny) {
+        return;
+    }
+    uint ci = k % cnx;
+    uint cj = k / cnx;
+    Mat3 blocks[9];
+    for (uint s = 0u; s < 9u; s++) {
+        blocks[s] = mat3_zero();
+    }
+    vec3 b = vec3(0.0);
+    vec4 rest = params.rest_lengths;
+    for (uint dj = 0u; dj < 2u; dj++) {
+        for (uint di = 0u; di < 2u; di++) {
+            uint i = 2u * ci + di;
+            uint j = 2u * cj + dj;
+            if (i >= params.grid_nx || j >= params.grid_ny) {
+                continue;
+            }
+            uint index = j * params.grid_nx + i;
+            vec4 p = positions_out[index];
+            if (p.w <= 0.0) {
+                continue;
+            }
+            LocalTerms t = vertex_terms(index, i, j);
+            b -= t.g;
+            blocks[4] = mat3_add(blocks[4], t.h);
+            int ii = int(i);
+            int jj = int(j);
+            if (EFFECT_STRUCTURAL) {
+                mg_add_coupling(blocks, p.xyz, ii, jj, 0, -1, 0u, rest.y);
+                mg_add_coupling(blocks, p.xyz, ii, jj, -1, 0, 0u, rest.x);
+                mg_add_coupling(blocks, p.xyz, ii, jj, 1, 0, 0u, rest.x);
+                mg_add_coupling(blocks, p.xyz, ii, jj, 0, 1, 0u, rest.y);
+            }
+            if (EFFECT_SHEAR) {
+                mg_add_coupling(blocks, p.xyz, ii, jj, -1, -1, 1u, rest.z);
+                mg_add_coupling(blocks, p.xyz, ii, jj, 1, -1, 1u, rest.z);
+                mg_add_coupling(blocks, p.xyz, ii, jj, 1, 1, 1u, rest.z);
+                mg_add_coupling(blocks, p.xyz, ii, jj, -1, 1, 1u, rest.z);
+            }
+            if (EFFECT_BEND) {
+                mg_add_coupling(blocks, p.xyz, ii, jj, 0, -2, 2u, 2.0 * rest.y);
+                mg_add_coupling(blocks, p.xyz, ii, jj, -2, 0, 2u, 2.0 * rest.x);
+                mg_add_coupling(blocks, p.xyz, ii, jj, 2, 0, 2u, 2.0 * rest.x);
+                mg_add_coupling(blocks, p.xyz, ii, jj, 0, 2, 2u, 2.0 * rest.y);
+            }
+        }
+    }
+    for (uint s = 0u; s < 9u; s++) {
+        mg_store_block(sweep.coarse_stencil, k, s, blocks[s]);
+    }
+    uint nodes = cnx * sweep.coarse_ny;
+    multigrid[sweep.coarse_vectors + k] = vec4(b, 0.0);
+    multigrid[sweep.coarse_vectors + nodes + k] = vec4(0.0);
+}
+
+// Pass 4: node k of the next level, this level's stencil summed 2 × 2 (Level::coarsen).
+void mg_coarsen(uint k) {
+    uint cnx = sweep.coarse_nx;
+    if (k >= cnx * sweep.coarse_ny) {
+        return;
+    }
+    int ci = int(k % cnx);
+    int cj = int(k / cnx);
+    Mat3 blocks[9];
+    for (uint s = 0u; s < 9u; s++) {
+        blocks[s] = mat3_zero();
+    }
+    for (int b = 0; b < 2; b++) {
+        for (int a = 0; a < 2; a++) {
+            int i = 2 * ci + a;
+            int j = 2 * cj + b;
+            if (i >= int(sweep.nx) || j >= int(sweep.ny)) {
+                continue;
+            }
+            uint node = uint(j) * sweep.nx + uint(i);
+            for (int dj = -1; dj <= 1; dj++) {
+                for (int di = -1; di <= 1; di++) {
+                    int ni = i + di;
+                    int nj = j + dj;
+                    if (ni < 0 || nj < 0 || ni >= int(sweep.nx) || nj >= int(sweep.ny)) {
+                        continue;
+                    }
+                    uint s = mg_slot(ni / 2 - ci, nj / 2 - cj);
+                    blocks[s] = mat3_add(blocks[s], mg_block(sweep.stencil, node, mg_slot(di, dj)));
+                }
+            }
+        }
+    }
+    for (uint s = 0u; s < 9u; s++) {
+        mg_store_block(sweep.coarse_stencil, k, s, blocks[s]);
+    }
+}
+
+// Pass 5: block Gauss–Seidel at node k of colour VBD_COLOR (Level::smooth).
+void mg_smooth(uint k) {
+    uint half_nx = (sweep.nx + 1u) / 2u;
+    uint i = 2u * (k % half_nx) + VBD_COLOR % 2u;
+    uint j = 2u * (k / half_nx) + VBD_COLOR / 2u;
+    if (i >= sweep.nx || j >= sweep.ny) {
+        return;
+    }
+    uint node = j * sweep.nx + i;
+    vec3 rhs = multigrid[sweep.vectors + node].xyz - mg_apply(i, j, true);
+    // A⁻¹ rhs as newton_step's x − H⁻¹ g at x = 0, g = −rhs (0 where the block is singular).
+    vec3 e = newton_step(vec3(0.0), LocalTerms(-rhs, mg_block(sweep.stencil, node, 4u)));
+    multigrid[sweep.vectors + sweep.nx * sweep.ny + node] = vec4(e, 0.0);
+}
+
+// Pass 6: node k of the next level: the sum of its children's residuals b − A e, and e' = 0.
+void mg_restrict(uint k) {
+    uint cnx = sweep.coarse_nx;
+    uint nodes = cnx * sweep.coarse_ny;
+    if (k >= nodes) {
+        return;
+    }
+    uint ci = k % cnx;
+    uint cj = k / cnx;
+    vec3 b = vec3(0.0);
+    for (uint dj = 0u; dj < 2u; dj++) {
+        for (uint di = 0u; di < 2u; di++) {
+            uint i = 2u * ci + di;
+            uint j = 2u * cj + dj;
+            if (i < sweep.nx && j < sweep.ny) {
+                b += multigrid[sweep.vectors + j * sweep.nx + i].xyz - mg_apply(i, j, false);
+            }
+        }
+    }
+    multigrid[sweep.coarse_vectors + k] = vec4(b, 0.0);
+    multigrid[sweep.coarse_vectors + nodes + k] = vec4(0.0);
+}
+
+// The workgroup's sums (uniform control flow).
+shared vec2 sums[1024];
+
+vec2 workgroup_sum(vec2 value, uint local) {
+    sums[local] = value;
+    barrier();
+    for (uint s = gl_WorkGroupSize.x / 2u; s > 0u; s = s / 2u) {
+        if (local < s) {
+            sums[local] = sums[local] + sums[local + s];
+        }
+        barrier();
+    }
+    vec2 total = sums[0];
+    barrier();
+    return total;
+}
+
+// Pass 7: this level's partial sums of e·A e and b·e, one a workgroup (uniform control flow).
+void mg_model(uint k, uint local, uint group) {
+    vec2 value = vec2(0.0);
+    if (k < sweep.nx * sweep.ny) {
+        uint i = k % sweep.nx;
+        uint j = k / sweep.nx;
+        vec3 e = mg_e(k);
+        value = vec2(dot(e, mg_apply(i, j, false)), dot(multigrid[sweep.vectors + k].xyz, e));
+    }
+    vec2 total = workgroup_sum(value, local);
+    if (local == 0u) {
+        multigrid[sweep.partials + group] = vec4(total, 0.0, 0.0);
+    }
+}
+
+// The step α = (b'·e') / (e'·A'e') along the next level's correction, from its partials
+// (multigrid::step_length; 0 where the curvature is not positive), in every invocation.
+float mg_step_length(uint local) {
+    uint count = (sweep.coarse_nx * sweep.coarse_ny + gl_WorkGroupSize.x - 1u) / gl_WorkGroupSize.x;
+    vec2 sum = vec2(0.0);
+    for (uint k = local; k < count; k += gl_WorkGroupSize.x) {
+        sum += multigrid[sweep.coarse_partials + k].xy;
+    }
+    vec2 total = workgroup_sum(sum, local);
+    // (slope − slope is NaN for an infinite or NaN slope.)
+    if (total.x > 0.0 && total.y - total.y == 0.0) {
+        return total.y / total.x;
+    }
+    return 0.0;
+}
+
+// Pass 8: this level's node k moves by α times its parent's correction (uniform control flow).
+void mg_prolong(uint k, uint local) {
+    float alpha = mg_step_length(local);
+    if (k >= sweep.nx * sweep.ny) {
+        return;
+    }
+    uint parent = (k / sweep.nx / 2u) * sweep.coarse_nx + (k % sweep.nx) / 2u;
+    uint cnodes = sweep.coarse_nx * sweep.coarse_ny;
+    uint at = sweep.vectors + sweep.nx * sweep.ny + k;
+    multigrid[at] = vec4(multigrid[at].xyz + multigrid[sweep.coarse_vectors + cnodes + parent].xyz * alpha, 0.0);
+}
+
+// Pass 9: free vertex k moves by α times its aggregate's level-1 correction, stopping at the
+// surface of a collider it would enter (uniform control flow).
+void mg_move(uint k, uint local) {
+    float alpha = mg_step_length(local);
+    if (k >= params.vertex_count) {
+        return;
+    }
+    vec4 p = positions_out[k];
+    if (p.w <= 0.0) {
+        return;
+    }
+    uint nx = params.grid_nx;
+    uint parent = (k / nx / 2u) * sweep.coarse_nx + (k % nx) / 2u;
+    uint cnodes = sweep.coarse_nx * sweep.coarse_ny;
+    vec3 moved = p.xyz + multigrid[sweep.coarse_vectors + cnodes + parent].xyz * alpha;
+    if (EFFECT_CONTACT) {
+        moved = stop_at_surfaces(p.xyz, moved, velocities_in[k].w + params.substep_dt);
+    }
+    positions_out[k] = vec4(moved, p.w);
+}
+
 void main() {
+    if (VBD_PASS >= 3u) {
+        uint k = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+        uint g = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        uint local = gl_LocalInvocationIndex;
+        if (VBD_PASS == 3u) {
+            mg_assemble(k);
+        } else if (VBD_PASS == 4u) {
+            mg_coarsen(k);
+        } else if (VBD_PASS == 5u) {
+            mg_smooth(k);
+        } else if (VBD_PASS == 6u) {
+            mg_restrict(k);
+        } else if (VBD_PASS == 7u) {
+            mg_model(k, local, g);
+        } else if (VBD_PASS == 8u) {
+            mg_prolong(k, local);
+        } else {
+            mg_move(k, local);
+        }
+        return;
+    }
     if (EFFECT_SELF_COLLISION && VBD_PASS == 2u) {
         clear_motion(gl_LocalInvocationIndex);
     }

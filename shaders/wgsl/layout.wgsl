@@ -72,12 +72,21 @@ struct ColorRange {
     pad: u32,
 }
 
-// cloth_gpu::layout::GpuVbdSweep (16 bytes): what a VBD colour pass needs of its sweep.
+// cloth_gpu::layout::GpuVbdSweep (48 bytes): what a VBD colour pass needs of its sweep, or a
+// multigrid pass of its level (offsets in vec4s of the multigrid buffer).
 struct VbdSweep {
     omega: f32,              // Chebyshev's weight of the sweep
     chebyshev: u32,          // 1: Chebyshev acceleration on
-    pad0: u32,
-    pad1: u32,
+    nx: u32,                 // this level's nodes along i (level 0: the grid's vertices)
+    ny: u32,                 // and along j
+    coarse_nx: u32,          // the next coarser level's nodes along i
+    coarse_ny: u32,          // and along j
+    stencil: u32,            // this level's stencil, 27 vec4s a node
+    vectors: u32,            // this level's b, then its e
+    partials: u32,           // this level's partial sums
+    coarse_stencil: u32,     // the next level's stencil
+    coarse_vectors: u32,     // the next level's b, then its e
+    coarse_partials: u32,    // the next level's partial sums
 }
 
 // cloth_gpu::layout::GpuCgCounters (32 bytes): backward Euler's conjugate gradients' counters.

@@ -13,6 +13,16 @@
 //                           friction), optionally extrapolated by Chebyshev's weight of the sweep;
 //   pass 2 (per vertex)     v = (x − x⁰)/h (with SelfCollision, the speed limit), deepest
 //                           penetration, the velocity the next prediction compares with.
+// With the solver's vbd_multigrid_every, a coarse correction (cloth_core::multigrid) comes
+// before every that many sweeps, on the levels the sweep blocks describe (this level, the next
+// coarser one):
+//   pass 3 (per level-1 node)  assemble level 1 from the vertices' local terms and springs;
+//   pass 4 (per node of the next level)  sum this level's stencil 2 × 2 into the next;
+//   pass 5 (per node of colour VBD_COLOR, (i mod 2) + 2 (j mod 2))  block Gauss–Seidel;
+//   pass 6 (per node of the next level)  its right-hand side, the sum of this level's residuals;
+//   pass 7 (per node)     this level's partial sums of e·A e and b·e;
+//   pass 8 (per node)     e += α e' of the next level, α = (b'·e') / (e'·A'e') from its partials;
+//   pass 9 (per vertex)   the vertices move by α e of level 1, stopping at colliders' surfaces.
 // The vertices of colour c are those with (i + 2j) mod 5 = c (cloth_core::coloring::vertex_color):
 // no spring of the stencil joins two of them, so a colour's steps read only other colours'
 // positions. Units: m, kg, s, N/m.
@@ -53,6 +63,11 @@ fn position_in(index: u32) -> vec3<f32> {
 @group(0) @binding(12) var<storage, read> self_words: array<u32>;
 @group(0) @binding(13) var<storage, read> self_links: array<u32>;
 @group(0) @binding(14) var<storage, read_write> self_control: SelfControl;
+
+// The multigrid correction's levels, each at offsets its sweep block gives: the 3 × 3 stencil of
+// 3 × 3 blocks of every node (27 rows), the right-hand sides b, the corrections e, the partial sums
+// (a placeholder without the correction).
+@group(0) @binding(15) var<storage, read_write> multigrid: array<vec4<f32>>;
 
 // The hash's word at `at` (self_collision.wgsl).
 fn link(at: u32) -> u32 {
@@ -267,27 +282,12 @@ fn predict(i: u32) {
     }
 }
 
-// Pass 1: the vertex of colour VBD_COLOR that invocation `k` moves (row j, every fifth column
-// from the row's first of the colour).
-fn step_color(k: u32) {
-    let nx = params.grid_nx;
-    let per_row = (nx + 4u) / 5u;
-    let j = k / per_row;
-    if (j >= params.grid_ny) {
-        return;
-    }
-    let i = (VBD_COLOR + 5u - (2u * j) % 5u) % 5u + 5u * (k % per_row);
-    if (i >= nx) {
-        return;
-    }
-    let index = j * nx + i;
-    let p = positions_out[index];
-    if (p.w <= 0.0) {
-        return;
-    }
+// The local terms of free vertex `index` at (i, j), where the sweeps have it (positions_out):
+// inertia, its springs and its colliders (cloth_core::reference's vbd_substep, local_terms).
+fn vertex_terms(index: u32, i: u32, j: u32) -> LocalTerms {
     let h = params.substep_dt;
     let m = params.vertex_mass;
-    let x = p.xyz;
+    let x = positions_out[index].xyz;
     let x0 = positions_in[index].xyz;
     let w = m / (h * h);
     var t = LocalTerms((x - predicted[index].xyz) * w, mat3_scaled(mat3_identity(), w));
@@ -322,23 +322,51 @@ fn step_color(k: u32) {
             }
         }
     }
+    return t;
+}
+
+// Where a move of a vertex from `x` to `moved`, at the substep's end time `t_end`, stops: at the
+// surface of a collider it would enter from outside (cloth_core::vbd::surface_fraction).
+fn stop_at_surfaces(x: vec3<f32>, moved: vec3<f32>, t_end: f32) -> vec3<f32> {
+    var fraction = 1.0;
+    for (var c = 0u; c < params.collider_count; c++) {
+        let center = collider_center(c, t_end);
+        let start = collider_distance(c, center, x);
+        let end = collider_distance(c, center, moved);
+        if ((start >= 0.0) & (end < 0.0)) {
+            fraction = min(fraction, start / (start - end));
+        }
+    }
+    if (fraction < 1.0) {
+        return x + (moved - x) * fraction;
+    }
+    return moved;
+}
+
+// Pass 1: the vertex of colour VBD_COLOR that invocation `k` moves (row j, every fifth column
+// from the row's first of the colour).
+fn step_color(k: u32) {
+    let nx = params.grid_nx;
+    let per_row = (nx + 4u) / 5u;
+    let j = k / per_row;
+    if (j >= params.grid_ny) {
+        return;
+    }
+    let i = (VBD_COLOR + 5u - (2u * j) % 5u) % 5u + 5u * (k % per_row);
+    if (i >= nx) {
+        return;
+    }
+    let index = j * nx + i;
+    let p = positions_out[index];
+    if (p.w <= 0.0) {
+        return;
+    }
+    let x = p.xyz;
+    let t = vertex_terms(index, i, j);
     var moved = newton_step(x, t);
     if (EFFECT_CONTACT) {
-        // A step from outside a collider into it stops at its surface
-        // (cloth_core::vbd::surface_fraction).
-        let t_end = velocities_in[index].w + h;
-        var fraction = 1.0;
-        for (var c = 0u; c < params.collider_count; c++) {
-            let center = collider_center(c, t_end);
-            let start = collider_distance(c, center, x);
-            let end = collider_distance(c, center, moved);
-            if ((start >= 0.0) & (end < 0.0)) {
-                fraction = min(fraction, start / (start - end));
-            }
-        }
-        if (fraction < 1.0) {
-            moved = x + (moved - x) * fraction;
-        }
+        // A step from outside a collider into it stops at its surface.
+        moved = stop_at_surfaces(x, moved, velocities_in[index].w + params.substep_dt);
     }
     if (sweep.chebyshev != 0u) {
         let before = history[2u * index + 1u].xyz;
@@ -380,11 +408,317 @@ fn finish(i: u32) -> vec4<f32> {
     return vec4<f32>(x - positions_in[i].xyz, 1.0);
 }
 
+// The multigrid correction (passes 3 to 9; cloth_core::multigrid).
+
+// M v.
+fn mat3_mul(m: Mat3, v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(m.r0, v), dot(m.r1, v), dot(m.r2, v));
+}
+
+// The stencil entry of the node at (di, dj) from a node (cloth_core::multigrid::slot).
+fn mg_slot(di: i32, dj: i32) -> u32 {
+    return u32((di + 1) + 3 * (dj + 1));
+}
+
+// Block `s` of node `node` of the stencil at `base`.
+fn mg_block(base: u32, node: u32, s: u32) -> Mat3 {
+    let at = base + 27u * node + 3u * s;
+    return Mat3(multigrid[at].xyz, multigrid[at + 1u].xyz, multigrid[at + 2u].xyz);
+}
+
+fn mg_store_block(base: u32, node: u32, s: u32, m: Mat3) {
+    let at = base + 27u * node + 3u * s;
+    multigrid[at] = vec4<f32>(m.r0, 0.0);
+    multigrid[at + 1u] = vec4<f32>(m.r1, 0.0);
+    multigrid[at + 2u] = vec4<f32>(m.r2, 0.0);
+}
+
+fn mat3_zero() -> Mat3 {
+    return Mat3(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+}
+
+// This level's correction at node `node`.
+fn mg_e(node: u32) -> vec3<f32> {
+    return multigrid[sweep.vectors + sweep.nx * sweep.ny + node].xyz;
+}
+
+// (A e) at node (i, j) of this level, leaving out the node's own block when `skip_self`.
+fn mg_apply(i: u32, j: u32, skip_self: bool) -> vec3<f32> {
+    let node = j * sweep.nx + i;
+    var sum = vec3<f32>(0.0);
+    for (var dj = -1; dj <= 1; dj++) {
+        for (var di = -1; di <= 1; di++) {
+            if (skip_self & (di == 0) & (dj == 0)) {
+                continue;
+            }
+            let ni = i32(i) + di;
+            let nj = i32(j) + dj;
+            if ((ni < 0) | (nj < 0) | (ni >= i32(sweep.nx)) | (nj >= i32(sweep.ny))) {
+                continue;
+            }
+            sum += mat3_mul(mg_block(sweep.stencil, node, mg_slot(di, dj)), mg_e(u32(nj) * sweep.nx + u32(ni)));
+        }
+    }
+    return sum;
+}
+
+// The coupling block −(K_s + C_s/h) of vertex (i, j)'s spring to its neighbour (i + di, j + dj), if
+// both are free, added to the level-1 stencil entry of the neighbour's aggregate.
+fn mg_add_coupling(blocks: ptr<function, array<Mat3, 9>>, x: vec3<f32>, i: i32, j: i32, di: i32, dj: i32,
+                   kind: u32, rest_length: f32) {
+    let ni = i + di;
+    let nj = j + dj;
+    if ((ni < 0) | (nj < 0) | (ni >= i32(params.grid_nx)) | (nj >= i32(params.grid_ny))) {
+        return;
+    }
+    let other = positions_out[u32(nj) * params.grid_nx + u32(ni)];
+    if (other.w <= 0.0) {
+        return;
+    }
+    var k = spring_stiffness_block(x, other.xyz, rest_length, params.stiffness[kind]);
+    if (EFFECT_SPRING_DAMPING) {
+        let c = params.damping[kind];
+        k = mat3_add(k, mat3_scaled(spring_damping_block(x, other.xyz, c), 1.0 / params.substep_dt));
+    }
+    let s = mg_slot(ni / 2 - i / 2, nj / 2 - j / 2);
+    (*blocks)[s] = mat3_add((*blocks)[s], mat3_scaled(k, -1.0));
+}
+
+// Pass 3: level-1 node k from its 2 × 2 vertices (cloth_core::multigrid::first_level).
+fn mg_assemble(k: u32) {
+    let cnx = sweep.coarse_nx;
+    if (k >= cnx * sweep.coarse_ny) {
+        return;
+    }
+    let ci = k % cnx;
+    let cj = k / cnx;
+    var blocks: array<Mat3, 9>;
+    for (var s = 0u; s < 9u; s++) {
+        blocks[s] = mat3_zero();
+    }
+    var b = vec3<f32>(0.0);
+    let rest = params.rest_lengths;
+    for (var dj = 0u; dj < 2u; dj++) {
+        for (var di = 0u; di < 2u; di++) {
+            let i = 2u * ci + di;
+            let j = 2u * cj + dj;
+            if ((i >= params.grid_nx) | (j >= params.grid_ny)) {
+                continue;
+            }
+            let index = j * params.grid_nx + i;
+            let p = positions_out[index];
+            if (p.w <= 0.0) {
+                continue;
+            }
+            let t = vertex_terms(index, i, j);
+            b -= t.g;
+            blocks[4] = mat3_add(blocks[4], t.h);
+            let ii = i32(i);
+            let jj = i32(j);
+            if (EFFECT_STRUCTURAL) {
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 0, -1, 0u, rest.y);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, -1, 0, 0u, rest.x);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 1, 0, 0u, rest.x);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 0, 1, 0u, rest.y);
+            }
+            if (EFFECT_SHEAR) {
+                mg_add_coupling(&blocks, p.xyz, ii, jj, -1, -1, 1u, rest.z);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 1, -1, 1u, rest.z);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 1, 1, 1u, rest.z);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, -1, 1, 1u, rest.z);
+            }
+            if (EFFECT_BEND) {
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 0, -2, 2u, 2.0 * rest.y);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, -2, 0, 2u, 2.0 * rest.x);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 2, 0, 2u, 2.0 * rest.x);
+                mg_add_coupling(&blocks, p.xyz, ii, jj, 0, 2, 2u, 2.0 * rest.y);
+            }
+        }
+    }
+    for (var s = 0u; s < 9u; s++) {
+        mg_store_block(sweep.coarse_stencil, k, s, blocks[s]);
+    }
+    let nodes = cnx * sweep.coarse_ny;
+    multigrid[sweep.coarse_vectors + k] = vec4<f32>(b, 0.0);
+    multigrid[sweep.coarse_vectors + nodes + k] = vec4<f32>(0.0);
+}
+
+// Pass 4: node k of the next level, this level's stencil summed 2 × 2 (Level::coarsen).
+fn mg_coarsen(k: u32) {
+    let cnx = sweep.coarse_nx;
+    if (k >= cnx * sweep.coarse_ny) {
+        return;
+    }
+    let ci = i32(k % cnx);
+    let cj = i32(k / cnx);
+    var blocks: array<Mat3, 9>;
+    for (var s = 0u; s < 9u; s++) {
+        blocks[s] = mat3_zero();
+    }
+    for (var b = 0; b < 2; b++) {
+        for (var a = 0; a < 2; a++) {
+            let i = 2 * ci + a;
+            let j = 2 * cj + b;
+            if ((i >= i32(sweep.nx)) | (j >= i32(sweep.ny))) {
+                continue;
+            }
+            let node = u32(j) * sweep.nx + u32(i);
+            for (var dj = -1; dj <= 1; dj++) {
+                for (var di = -1; di <= 1; di++) {
+                    let ni = i + di;
+                    let nj = j + dj;
+                    if ((ni < 0) | (nj < 0) | (ni >= i32(sweep.nx)) | (nj >= i32(sweep.ny))) {
+                        continue;
+                    }
+                    let s = mg_slot(ni / 2 - ci, nj / 2 - cj);
+                    blocks[s] = mat3_add(blocks[s], mg_block(sweep.stencil, node, mg_slot(di, dj)));
+                }
+            }
+        }
+    }
+    for (var s = 0u; s < 9u; s++) {
+        mg_store_block(sweep.coarse_stencil, k, s, blocks[s]);
+    }
+}
+
+// Pass 5: block Gauss–Seidel at node k of colour VBD_COLOR (Level::smooth).
+fn mg_smooth(k: u32) {
+    let half = (sweep.nx + 1u) / 2u;
+    let i = 2u * (k % half) + VBD_COLOR % 2u;
+    let j = 2u * (k / half) + VBD_COLOR / 2u;
+    if ((i >= sweep.nx) | (j >= sweep.ny)) {
+        return;
+    }
+    let node = j * sweep.nx + i;
+    let rhs = multigrid[sweep.vectors + node].xyz - mg_apply(i, j, true);
+    // A⁻¹ rhs as newton_step's x − H⁻¹ g at x = 0, g = −rhs (0 where the block is singular).
+    let e = newton_step(vec3<f32>(0.0), LocalTerms(-rhs, mg_block(sweep.stencil, node, 4u)));
+    multigrid[sweep.vectors + sweep.nx * sweep.ny + node] = vec4<f32>(e, 0.0);
+}
+
+// Pass 6: node k of the next level: the sum of its children's residuals b − A e, and e' = 0.
+fn mg_restrict(k: u32) {
+    let cnx = sweep.coarse_nx;
+    let nodes = cnx * sweep.coarse_ny;
+    if (k >= nodes) {
+        return;
+    }
+    let ci = k % cnx;
+    let cj = k / cnx;
+    var b = vec3<f32>(0.0);
+    for (var dj = 0u; dj < 2u; dj++) {
+        for (var di = 0u; di < 2u; di++) {
+            let i = 2u * ci + di;
+            let j = 2u * cj + dj;
+            if ((i < sweep.nx) & (j < sweep.ny)) {
+                b += multigrid[sweep.vectors + j * sweep.nx + i].xyz - mg_apply(i, j, false);
+            }
+        }
+    }
+    multigrid[sweep.coarse_vectors + k] = vec4<f32>(b, 0.0);
+    multigrid[sweep.coarse_vectors + nodes + k] = vec4<f32>(0.0);
+}
+
+// The workgroup's sums (uniform control flow).
+var<workgroup> sums: array<vec2<f32>, 1024>;
+
+fn workgroup_sum(value: vec2<f32>, local: u32) -> vec2<f32> {
+    sums[local] = value;
+    workgroupBarrier();
+    for (var s = WORKGROUP_SIZE / 2u; s > 0u; s = s / 2u) {
+        if (local < s) {
+            sums[local] = sums[local] + sums[local + s];
+        }
+        workgroupBarrier();
+    }
+    let total = sums[0];
+    workgroupBarrier();
+    return total;
+}
+
+// Pass 7: this level's partial sums of e·A e and b·e, one a workgroup (uniform control flow).
+fn mg_model(k: u32, local: u32, group: u32) {
+    var value = vec2<f32>(0.0);
+    if (k < sweep.nx * sweep.ny) {
+        let i = k % sweep.nx;
+        let j = k / sweep.nx;
+        let e = mg_e(k);
+        value = vec2<f32>(dot(e, mg_apply(i, j, false)), dot(multigrid[sweep.vectors + k].xyz, e));
+    }
+    let total = workgroup_sum(value, local);
+    if (local == 0u) {
+        multigrid[sweep.partials + group] = vec4<f32>(total, 0.0, 0.0);
+    }
+}
+
+// The step α = (b'·e') / (e'·A'e') along the next level's correction, from its partials
+// (multigrid::step_length; 0 where the curvature is not positive), in every invocation.
+fn mg_step_length(local: u32) -> f32 {
+    let count = (sweep.coarse_nx * sweep.coarse_ny + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
+    var sum = vec2<f32>(0.0);
+    for (var k = local; k < count; k += WORKGROUP_SIZE) {
+        sum += multigrid[sweep.coarse_partials + k].xy;
+    }
+    let total = workgroup_sum(sum, local);
+    // (slope − slope is NaN for an infinite or NaN slope.)
+    if ((total.x > 0.0) & (total.y - total.y == 0.0)) {
+        return total.y / total.x;
+    }
+    return 0.0;
+}
+
+// Pass 8: this level's node k moves by α times its parent's correction (uniform control flow).
+fn mg_prolong(k: u32, local: u32) {
+    let alpha = mg_step_length(local);
+    if (k >= sweep.nx * sweep.ny) {
+        return;
+    }
+    let parent = (k / sweep.nx / 2u) * sweep.coarse_nx + (k % sweep.nx) / 2u;
+    let cnodes = sweep.coarse_nx * sweep.coarse_ny;
+    let at = sweep.vectors + sweep.nx * sweep.ny + k;
+    multigrid[at] = vec4<f32>(multigrid[at].xyz + multigrid[sweep.coarse_vectors + cnodes + parent].xyz * alpha, 0.0);
+}
+
+// Pass 9: free vertex k moves by α times its aggregate's level-1 correction, stopping at the
+// surface of a collider it would enter (uniform control flow).
+fn mg_move(k: u32, local: u32) {
+    let alpha = mg_step_length(local);
+    if (k >= params.vertex_count) {
+        return;
+    }
+    let p = positions_out[k];
+    if (p.w <= 0.0) {
+        return;
+    }
+    let nx = params.grid_nx;
+    let parent = (k / nx / 2u) * sweep.coarse_nx + (k % nx) / 2u;
+    let cnodes = sweep.coarse_nx * sweep.coarse_ny;
+    var moved = p.xyz + multigrid[sweep.coarse_vectors + cnodes + parent].xyz * alpha;
+    if (EFFECT_CONTACT) {
+        moved = stop_at_surfaces(p.xyz, moved, velocities_in[k].w + params.substep_dt);
+    }
+    positions_out[k] = vec4<f32>(moved, p.w);
+}
+
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn vbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
        @builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) local: u32) {
     if (EFFECT_SELF_COLLISION & (VBD_PASS == 2u)) {
         clear_motion(local);
+    }
+    if (VBD_PASS >= 3u) {
+        let k = id.y * groups.x * WORKGROUP_SIZE + id.x;
+        let g = group.y * groups.x + group.x;
+        switch VBD_PASS {
+            case 3u: { mg_assemble(k); }
+            case 4u: { mg_coarsen(k); }
+            case 5u: { mg_smooth(k); }
+            case 6u: { mg_restrict(k); }
+            case 7u: { mg_model(k, local, g); }
+            case 8u: { mg_prolong(k, local); }
+            default: { mg_move(k, local); }
+        }
+        return;
     }
     let moved = run_pass(id, groups);
     if (EFFECT_SELF_COLLISION & (VBD_PASS == 2u)) {

@@ -220,7 +220,7 @@ pub fn under(scene: &Scene, integrator: cloth_core::Integrator) -> Scene {
 
 /// The implicit integrators' solver in the suites: one Newton iteration (with its line search) of
 /// at most 10 CG iterations (to the default tolerance, which the suites' scenes reach in 4 to 7),
-/// 10 VBD sweeps. A GPU frame records every CG iteration the solver allows (two dispatches each,
+/// 10 VBD sweeps with two multigrid corrections (the default). A GPU frame records every CG iteration the solver allows (two dispatches each,
 /// skipped once the solve is done), so the default two Newton iterations of 50 would record ten
 /// times the CG passes of this setting on lavapipe, whose scenes one iteration of 10 solves.
 pub const SUITE_SOLVER: cloth_core::solver::SolverSpec = cloth_core::solver::SolverSpec {
@@ -230,6 +230,7 @@ pub const SUITE_SOLVER: cloth_core::solver::SolverSpec = cloth_core::solver::Sol
     cg_max_iterations: 10,
     vbd_iterations: 10,
     chebyshev_rho: 0.0,
+    vbd_multigrid_every: 5,
 };
 
 pub fn scene(name: &str) -> Scene {

@@ -57,6 +57,7 @@ pub mod intersections;
 pub mod mesh;
 pub mod model;
 pub mod motion;
+pub mod multigrid;
 pub mod output;
 pub mod quantities;
 pub mod real;

@@ -877,7 +877,7 @@ impl<R: Real> ReferenceSimulator<R> {
         let friction = self.scene.effects.contains(Effect::Friction);
         let damped = self.scene.effects.contains(Effect::SpringDamping);
         let (nx, first, ends, pinned) = (p.nx, &self.first, &self.ends, &self.pinned);
-        let local_step = |x: &[Vec3<R>], i: usize| {
+        let local_terms = |x: &[Vec3<R>], i: usize| {
             let mut terms = LocalTerms::inertia(x[i], y[i], m, h);
             for end in &ends[first[i]..first[i + 1]] {
                 let j = end.other;
@@ -891,15 +891,20 @@ impl<R: Real> ReferenceSimulator<R> {
                     terms.add_contact((x[i], x0[i]), surface, velocity, c.stiffness, c.damping, mu, h);
                 }
             }
-            let moved = terms.step(x[i]);
-            // A step from outside a collider into it stops at its surface (vbd::surface_fraction).
+            terms
+        };
+        let stop_at_surfaces = |from: Vec3<R>, moved: Vec3<R>| {
             let mut fraction = R::one();
             for (c, &(center, _)) in p.colliders.iter().zip(&colliders) {
-                if let Some(s) = vbd::surface_fraction(c.distance(center, x[i]), c.distance(center, moved)) {
+                if let Some(s) = vbd::surface_fraction(c.distance(center, from), c.distance(center, moved)) {
                     fraction = fraction.min(s);
                 }
             }
-            if fraction < R::one() { x[i] + (moved - x[i]) * fraction } else { moved }
+            if fraction < R::one() { from + (moved - from) * fraction } else { moved }
+        };
+        let local_step = |x: &[Vec3<R>], i: usize| {
+            // A step from outside a collider into it stops at its surface (vbd::surface_fraction).
+            stop_at_surfaces(x[i], local_terms(x, i).step(x[i]))
         };
         // The vertices of each colour (free ones only).
         let colours: Vec<Vec<usize>> = (0..VERTEX_COLOR_COUNT)
@@ -926,7 +931,52 @@ impl<R: Real> ReferenceSimulator<R> {
         let (mut previous, mut before) = (x.clone(), x.clone());
         let rho = R::of(solver.chebyshev_rho);
         let mut moved = Vec::new();
+        // The multigrid coarse correction (crate::multigrid): the substep's Newton system
+        // linearised where the sweeps left the vertices, solved on aggregates of the grid.
+        let coarse_correction = |x: &mut Vec<Vec3<R>>| {
+            let ny = x.len() / nx;
+            let free: Vec<bool> = pinned.iter().map(|&p| !p).collect();
+            let terms: Vec<LocalTerms<R>> =
+                (0..x.len()).into_par_iter().with_min_len(PARALLEL_CHUNK).map(|i| local_terms(x, i)).collect();
+            let couplings: Vec<Vec<(usize, crate::real::Mat3<R>)>> = (0..x.len())
+                .into_par_iter()
+                .with_min_len(PARALLEL_CHUNK)
+                .map(|i| {
+                    ends[first[i]..first[i + 1]]
+                        .iter()
+                        .map(|end| {
+                            let j = end.other;
+                            let c = if damped { p.damping[end.kind] } else { R::zero() };
+                            let k = crate::forces::spring_stiffness_block(
+                                x[i],
+                                x[j],
+                                end.rest_length,
+                                p.stiffness[end.kind],
+                            ) + crate::forces::spring_damping_block(x[i], x[j], c) * (R::one() / h);
+                            (j, k * (-R::one()))
+                        })
+                        .collect()
+                })
+                .collect();
+            let diagonal: Vec<_> = terms.iter().map(|t| t.hessian).collect();
+            let gradient: Vec<_> = terms.iter().map(|t| t.gradient).collect();
+            let (level, b) = crate::multigrid::first_level(nx, ny, &free, &diagonal, &couplings, &gradient);
+            let levels = crate::multigrid::hierarchy(level);
+            let e = crate::multigrid::v_cycle(&levels, 0, &b);
+            let alpha = crate::multigrid::step_length(&levels[0], &e, &b);
+            let cnx = levels[0].nx;
+            for i in 0..x.len() {
+                if free[i] {
+                    let d = e[(i % nx) / 2 + ((i / nx) / 2) * cnx] * alpha;
+                    x[i] = stop_at_surfaces(x[i], x[i] + d);
+                }
+            }
+        };
         for sweep in 1..=solver.vbd_iterations {
+            let every = solver.vbd_multigrid_every;
+            if every > 0 && (sweep - 1) % every == 0 {
+                coarse_correction(&mut x);
+            }
             let omega = chebyshev_weight(sweep, rho);
             for vertices in &colours {
                 // A colour's vertices share no spring: each step reads only other colours' positions.

@@ -288,33 +288,139 @@ gpu_struct! {
 }
 
 gpu_struct! {
-    /// What a Vertex Block Descent colour pass needs of its sweep (16 bytes, stored every
-    /// [`COLOR_RANGE_STRIDE`] bytes of a uniform buffer and selected by a dynamic offset).
+    /// What a Vertex Block Descent colour pass needs of its sweep, or a pass of the multigrid
+    /// correction of its level (48 bytes, stored every [`COLOR_RANGE_STRIDE`] bytes of a uniform
+    /// buffer and selected by a dynamic offset). Offsets count `vec4`s of the multigrid buffer
+    /// ([`MultigridLevels`]).
     GpuVbdSweep as "VbdSweep" {
         /// Chebyshev's weight `ω_k` of the sweep (1 in the first).
         omega: f32,
         /// 1 when Chebyshev acceleration is on (the solver's `chebyshev_rho` > 0).
         chebyshev: u32,
-        /// Padding to 16 bytes.
-        pad0: u32,
-        /// Padding to 16 bytes.
-        pad1: u32,
+        /// This level's nodes along i (level 0: the grid's vertices).
+        nx: u32,
+        /// This level's nodes along j.
+        ny: u32,
+        /// The next coarser level's nodes along i.
+        coarse_nx: u32,
+        /// The next coarser level's nodes along j.
+        coarse_ny: u32,
+        /// This level's stencil: 27 `vec4`s a node (9 blocks of 3 rows).
+        stencil: u32,
+        /// This level's right-hand sides `b`, then its corrections `e`, a `vec4` a node each.
+        vectors: u32,
+        /// This level's partial sums `(e·A e, b·e)`, one a workgroup.
+        partials: u32,
+        /// The next level's stencil.
+        coarse_stencil: u32,
+        /// The next level's right-hand sides, then its corrections.
+        coarse_vectors: u32,
+        /// The next level's partial sums.
+        coarse_partials: u32,
+    }
+}
+
+/// One level of VBD's multigrid correction in the multigrid buffer (`cloth_core::multigrid`):
+/// its nodes and where its data starts, in `vec4`s.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MultigridLevel {
+    /// Nodes along i.
+    pub nx: u32,
+    /// Nodes along j.
+    pub ny: u32,
+    /// The stencil, 27 `vec4`s a node.
+    pub stencil: u32,
+    /// `b`, then `e`, a `vec4` a node each.
+    pub vectors: u32,
+    /// The partial sums, one a workgroup of a pass over the level's nodes.
+    pub partials: u32,
+}
+
+impl MultigridLevel {
+    /// The level's nodes.
+    pub fn nodes(&self) -> u32 {
+        self.nx * self.ny
+    }
+}
+
+/// The levels of VBD's multigrid correction for an `nx × ny` grid: level 0 is the grid itself
+/// (no data of its own), each next one its 2 × 2 aggregates, down to one node
+/// (`cloth_core::multigrid::hierarchy`); the data of levels 1 and on follow one another in one
+/// buffer of `vec4`s.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MultigridLevels {
+    /// Level 0 (the grid) and the coarse levels.
+    pub levels: Vec<MultigridLevel>,
+    /// The buffer's length, `vec4`s.
+    pub vec4s: u64,
+}
+
+impl MultigridLevels {
+    /// The levels of an `nx × ny` grid with partial sums for workgroups of `workgroup_size`.
+    pub fn new(nx: u32, ny: u32, workgroup_size: u32) -> Self {
+        let mut levels = vec![MultigridLevel { nx, ny, ..Default::default() }];
+        let mut at = 0u64;
+        while levels.len() < 2 || levels.last().is_some_and(|l| l.nodes() > 1) {
+            let last = levels[levels.len() - 1];
+            let (nx, ny) = (last.nx.div_ceil(2), last.ny.div_ceil(2));
+            let nodes = u64::from(nx * ny);
+            let stencil = at;
+            let vectors = stencil + 27 * nodes;
+            let partials = vectors + 2 * nodes;
+            at = partials + nodes.div_ceil(u64::from(workgroup_size));
+            let offset = |v: u64| u32::try_from(v).expect("a multigrid buffer within 2^32 vec4s");
+            levels.push(MultigridLevel {
+                nx,
+                ny,
+                stencil: offset(stencil),
+                vectors: offset(vectors),
+                partials: offset(partials),
+            });
+        }
+        Self { levels, vec4s: at.max(1) }
+    }
+
+    /// The uniform block of passes on level `l` (0: the grid), which also describes level `l + 1`.
+    pub fn block(&self, l: usize) -> GpuVbdSweep {
+        let this = self.levels[l];
+        let next = self.levels.get(l + 1).copied().unwrap_or_default();
+        GpuVbdSweep {
+            omega: 1.0,
+            chebyshev: 0,
+            nx: this.nx,
+            ny: this.ny,
+            coarse_nx: next.nx,
+            coarse_ny: next.ny,
+            stencil: this.stencil,
+            vectors: this.vectors,
+            partials: this.partials,
+            coarse_stencil: next.stencil,
+            coarse_vectors: next.vectors,
+            coarse_partials: next.partials,
+        }
     }
 }
 
 impl GpuVbdSweep {
     /// The blocks of every sweep of a substep, `COLOR_RANGE_STRIDE` bytes apart: sweep `k`, from
     /// 1, at `(k − 1) COLOR_RANGE_STRIDE`, with its Chebyshev weight computed in `f32` as the
-    /// reference computes it (`cloth_core::vbd::chebyshev_weight`).
-    pub fn blocks(solver: &cloth_core::solver::SolverSpec) -> Vec<u8> {
+    /// reference computes it (`cloth_core::vbd::chebyshev_weight`); then, with the multigrid
+    /// correction, one block a level ([`GpuVbdSweep::level_offset`]).
+    pub fn blocks(solver: &cloth_core::solver::SolverSpec, multigrid: Option<&MultigridLevels>) -> Vec<u8> {
         let sweeps = solver.vbd_iterations.max(1) as usize;
-        let mut bytes = vec![0u8; sweeps * COLOR_RANGE_STRIDE as usize];
+        let levels = multigrid.map_or(0, |m| m.levels.len());
+        let mut bytes = vec![0u8; (sweeps + levels) * COLOR_RANGE_STRIDE as usize];
         let chebyshev = solver.chebyshev_rho > 0.0;
-        for k in 0..sweeps {
-            let omega = cloth_core::vbd::chebyshev_weight(k as u32 + 1, solver.chebyshev_rho as f32);
-            let block = GpuVbdSweep { omega, chebyshev: u32::from(chebyshev), ..Default::default() };
+        let mut put = |k: usize, block: GpuVbdSweep| {
             let at = k * COLOR_RANGE_STRIDE as usize;
             bytes[at..at + size_of::<Self>()].copy_from_slice(bytemuck::bytes_of(&block));
+        };
+        for k in 0..sweeps {
+            let omega = cloth_core::vbd::chebyshev_weight(k as u32 + 1, solver.chebyshev_rho as f32);
+            put(k, GpuVbdSweep { omega, chebyshev: u32::from(chebyshev), ..Default::default() });
+        }
+        for l in 0..levels {
+            put(sweeps + l, multigrid.expect("levels").block(l));
         }
         bytes
     }
@@ -322,6 +428,11 @@ impl GpuVbdSweep {
     /// The dynamic offset of sweep `k` (from 1).
     pub fn offset(k: u32) -> u32 {
         ((k.max(1) - 1) as u64 * COLOR_RANGE_STRIDE) as u32
+    }
+
+    /// The dynamic offset of multigrid level `l`'s block, after the solver's sweeps.
+    pub fn level_offset(solver: &cloth_core::solver::SolverSpec, l: usize) -> u32 {
+        ((u64::from(solver.vbd_iterations.max(1)) + l as u64) * COLOR_RANGE_STRIDE) as u32
     }
 }
 

@@ -43,11 +43,20 @@ impl MemoryEstimate {
                 (20 * springs + 4 * vertices + 2 * COLOR_COUNT as u128 * COLOR_RANGE_STRIDE as u128, 16 * springs)
             }
             // The inertial predictions, the last substep's velocities, Chebyshev's history (a
-            // 16-byte placeholder without it), the sweeps' uniform blocks.
+            // 16-byte placeholder without it), the sweeps' and the multigrid levels' uniform
+            // blocks, the multigrid levels (a 16-byte placeholder without the correction; partial
+            // sums for workgroups of the default 256 invocations).
             Integrator::Vbd => {
                 let history = if scene.solver.chebyshev_rho > 0.0 { 2 * state } else { 16 };
-                let sweeps = COLOR_RANGE_STRIDE as u128 * u128::from(scene.solver.vbd_iterations.max(1));
-                (2 * state + history + sweeps, state.max(history))
+                let (levels, blocks) = if scene.solver.vbd_multigrid_every > 0 {
+                    let [rx, ry] = scene.cloth.resolution;
+                    let m = crate::layout::MultigridLevels::new(rx, ry, 256);
+                    (16 * u128::from(m.vec4s), m.levels.len() as u128)
+                } else {
+                    (16, 0)
+                };
+                let sweeps = COLOR_RANGE_STRIDE as u128 * (u128::from(scene.solver.vbd_iterations.max(1)) + blocks);
+                (2 * state + history + sweeps + levels, state.max(history).max(levels))
             }
             // CG's vectors and the five blocks a vertex, the partial sums (a vec2 a workgroup of
             // the default 256 invocations in each section), the counters, the iterations' steps

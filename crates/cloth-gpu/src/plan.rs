@@ -12,7 +12,8 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
     COLOR_RANGE_STRIDE, GpuCgCounters, GpuCgStep, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl,
-    GpuSimParams, GpuVbdSweep, LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, REBUILD_PASSES, SelfHashTable,
+    GpuSimParams, GpuVbdSweep, LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, MultigridLevels,
+    REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
 use crate::tuning::{CandidateListing, GpuTuning, invalid};
@@ -365,8 +366,9 @@ const XPBD_BINDINGS: [Binding; 16] = [
 /// `vbd`'s bindings: parameters, colliders, positions and velocities in, positions and velocities
 /// out, the deepest penetration, the inertial predictions, the last substep's velocities,
 /// Chebyshev's history, the sweep (a block of the sweeps' buffer, chosen by a dynamic offset), the
-/// distance fields, then self-collision's buffers ([`SELF_COLLISION`]).
-const VBD_BINDINGS: [Binding; 15] = [
+/// distance fields, self-collision's buffers ([`SELF_COLLISION`]), then the multigrid
+/// correction's levels ([`MultigridLevels`]; a placeholder without it).
+const VBD_BINDINGS: [Binding; 16] = [
     PARAMS,
     COLLIDERS,
     READ,
@@ -382,6 +384,7 @@ const VBD_BINDINGS: [Binding; 15] = [
     SELF_COLLISION[0],
     SELF_COLLISION[1],
     SELF_COLLISION[2],
+    WRITE,
 ];
 
 /// `implicit`'s bindings: parameters, colliders, positions and velocities in, the iterate (and
@@ -912,7 +915,11 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
     let last_velocities = b.filled("VBD last substep's velocities", storage, bytemuck::cast_slice(&last));
     let chebyshev = solver.chebyshev_rho > 0.0;
     let history = b.buffer("VBD Chebyshev history", storage, if chebyshev { 32 * n } else { 16 }, None);
-    let sweeps = b.filled("VBD sweeps", BufferUsage::Uniform, &GpuVbdSweep::blocks(&solver));
+    let [nx, ny] = scene.cloth.resolution;
+    let multigrid = (solver.vbd_multigrid_every > 0).then(|| MultigridLevels::new(nx, ny, b.tuning.workgroup_size));
+    let sweeps = b.filled("VBD sweeps", BufferUsage::Uniform, &GpuVbdSweep::blocks(&solver, multigrid.as_ref()));
+    let levels_bytes = multigrid.as_ref().map_or(16, |m| 16 * m.vec4s);
+    let levels = b.buffer("VBD multigrid levels", storage, levels_bytes, None);
     let self_collision = scene.effects.contains(Effect::SelfCollision);
     let self_buffers = self_collision_buffers(b);
     let kernel = b.kernel(Shader::Vbd, &VBD_BINDINGS);
@@ -924,6 +931,7 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
             vec![s.params, s.colliders, p[k], v[k], p[1 - k], v[1 - k], s.max_penetration],
             vec![predicted, last_velocities, history, sweeps, s.distance_fields],
             self_buffers.bound().to_vec(),
+            vec![levels],
         ]
         .concat();
         b.group(kernel, format!("VBD {} -> {}", NAME[k], NAME[1 - k]), buffers)
@@ -938,7 +946,6 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
     let finish = b.pipeline(kernel, "VBD finish", &[(Constant::VbdPass, 2), (Constant::VbdColor, 0)]);
     let (threads, max) = (b.tuning.workgroup_size, limits.max_workgroups_per_dimension);
     let vertices = spilled_workgroups(n as u32, threads, max);
-    let [nx, ny] = scene.cloth.resolution;
     // A colour pass: one invocation for every fifth vertex of each row.
     let per_color = spilled_workgroups(nx.div_ceil(VERTEX_COLOR_COUNT as u32) * ny, threads, max);
     let pass = |pipeline, workgroups, offset| Pass {
@@ -948,8 +955,30 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
         dynamic_offset: Some(offset),
         indirect: None,
     };
+    let correction = multigrid.map(|m| {
+        let mut named = |name: &str, pass: u32, color: u32| {
+            let constants = [(Constant::VbdPass, pass), (Constant::VbdColor, color)];
+            b.pipeline(kernel, &format!("VBD multigrid {name}"), &constants)
+        };
+        let pipelines = MultigridPipelines {
+            assemble: named("assemble", 3, 0),
+            coarsen: named("coarsen", 4, 0),
+            smooth: [0, 1, 2, 3].map(|c| named(&format!("smooth colour {c}"), 5, c)),
+            restrict: named("restrict", 6, 0),
+            model: named("model", 7, 0),
+            prolong: named("prolong", 8, 0),
+            apply: named("move", 9, 0),
+        };
+        multigrid_correction(&m, &pipelines, &solver, |pipeline, invocations, offset| {
+            pass(pipeline, spilled_workgroups(invocations, threads, max), offset)
+        })
+    });
     let mut substep = vec![pass(predict, vertices, 0)];
     for sweep in 1..=solver.vbd_iterations {
+        let every = solver.vbd_multigrid_every;
+        if let Some(correction) = correction.as_ref().filter(|_| every > 0 && (sweep - 1) % every == 0) {
+            substep.extend_from_slice(correction);
+        }
         for &pipeline in &colors {
             substep.push(pass(pipeline, per_color, GpuVbdSweep::offset(sweep)));
         }
@@ -957,6 +986,63 @@ fn vbd(b: &mut Builder, velocities: &[[f32; 4]], limits: &DeviceLimits) -> Sched
     substep.push(pass(finish, vertices, 0));
     let checks = self_collision.then(|| self_collision_checks(b, &self_buffers));
     Schedule { substep, tiled: None, packed: None, self_collision: checks }
+}
+
+/// The pipelines of VBD's multigrid correction (`vbd.wgsl`'s passes 3 to 9).
+struct MultigridPipelines {
+    assemble: PipelineId,
+    coarsen: PipelineId,
+    smooth: [PipelineId; 4],
+    restrict: PipelineId,
+    model: PipelineId,
+    prolong: PipelineId,
+    apply: PipelineId,
+}
+
+/// One multigrid correction's passes, in the order `cloth_core::multigrid::v_cycle` and the
+/// reference's coarse correction take them: assemble level 1, coarsen each level into the next,
+/// then the V-cycle (on each level two smoothing sweeps, the next level's right-hand side, its
+/// cycle, its step and prolongation, two sweeps; on the coarsest only the sweeps), the step of
+/// level 1 and the vertices' move. `pass` makes a pass of a pipeline over that many invocations
+/// with the level's dynamic offset.
+fn multigrid_correction(
+    m: &MultigridLevels,
+    p: &MultigridPipelines,
+    solver: &cloth_core::solver::SolverSpec,
+    pass: impl Fn(PipelineId, u32, u32) -> Pass,
+) -> Vec<Pass> {
+    let offset = |l: usize| GpuVbdSweep::level_offset(solver, l);
+    let levels = &m.levels;
+    let coarsest = levels.len() - 1;
+    let mut passes = vec![pass(p.assemble, levels[1].nodes(), offset(0))];
+    for l in 1..coarsest {
+        passes.push(pass(p.coarsen, levels[l + 1].nodes(), offset(l)));
+    }
+    let smooth = |passes: &mut Vec<Pass>, l: usize| {
+        let level = levels[l];
+        // A colour (i mod 2, j mod 2) pass over every other node of every other row.
+        let per_colour = level.nx.div_ceil(2) * level.ny.div_ceil(2);
+        for _ in 0..cloth_core::multigrid::SMOOTHING_SWEEPS {
+            for (c, &pipeline) in p.smooth.iter().enumerate() {
+                if (c % 2 == 0 || level.nx > 1) && (c / 2 == 0 || level.ny > 1) {
+                    passes.push(pass(pipeline, per_colour, offset(l)));
+                }
+            }
+        }
+    };
+    for l in 1..coarsest {
+        smooth(&mut passes, l);
+        passes.push(pass(p.restrict, levels[l + 1].nodes(), offset(l)));
+    }
+    smooth(&mut passes, coarsest);
+    for l in (1..coarsest).rev() {
+        passes.push(pass(p.model, levels[l + 1].nodes(), offset(l + 1)));
+        passes.push(pass(p.prolong, levels[l].nodes(), offset(l)));
+        smooth(&mut passes, l);
+    }
+    passes.push(pass(p.model, levels[1].nodes(), offset(1)));
+    passes.push(pass(p.apply, levels[0].nodes(), offset(0)));
+    passes
 }
 
 /// The CG vectors a vertex keeps (`vec4` each, `implicit.wgsl` lists them): Δ, r, q, z = P r and

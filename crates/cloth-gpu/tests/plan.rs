@@ -315,3 +315,29 @@ fn self_collision_checks_come_every_check_interval_with_indirect_rebuilds() {
         assert_eq!(at, frame.len(), "{integrator:?}: nothing else in the frame");
     }
 }
+
+/// VBD's substep: predict, the sweeps' five colour passes, finish; with the multigrid correction
+/// (the default, before every fifth sweep), the correction's passes before sweeps 1 and 6, 145 of
+/// them at 256² (docs/model.md).
+#[test]
+fn vbd_corrections_come_before_every_nth_sweep() {
+    let count = |n: u32, every: u32| {
+        let mut scene = scene(Integrator::Vbd, n);
+        scene.cloth.resolution = [n, n];
+        scene.solver.vbd_multigrid_every = every;
+        let plan = Plan::new(&scene, &GpuTuning::default(), &GPU, "test").unwrap();
+        let mut out = Vec::new();
+        plan.schedule.frame(1, 0, &mut out);
+        out.len()
+    };
+    assert_eq!(count(13, 0), 1 + 10 * 5 + 1);
+    for n in [13, 256] {
+        let correction = (count(n, 5) - count(n, 0)) / 2;
+        assert_eq!(count(n, 5), count(n, 0) + 2 * correction);
+        assert_eq!(count(n, 3), count(n, 0) + 4 * correction, "before sweeps 1, 4, 7 and 10");
+        assert_eq!(count(n, 10), count(n, 0) + correction, "before sweep 1 only");
+        if n == 256 {
+            assert_eq!(correction, 145);
+        }
+    }
+}

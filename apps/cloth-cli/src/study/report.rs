@@ -683,8 +683,9 @@ pub fn markdown(studies: &[Study], budgets: &Budgets, files: &Files) -> String {
          step and first order, and its error is mostly numerical damping: the energy it dissipates \
          grows with the step.\n\
          * **VBD** (Vertex Block Descent) minimises the same implicit-Euler energy by per-vertex Newton \
-         steps over five vertex colours; its error is implicit Euler's plus what its sweeps leave \
-         unconverged.\n\
+         steps over five vertex colours, with, by default, a multigrid coarse correction \
+         once every {multigrid_every} sweeps that carries the pins' and colliders' hold across the \
+         cloth; its error is implicit Euler's plus what its sweeps leave unconverged.\n\
          * On a GPU, each force evaluation, CG iteration or colour sweep is one or more dispatches; \
          XPBD takes {xpbd_dispatches} dispatches per substep on `{name}`. At small grids a dispatch \
          costs a few microseconds whatever it computes, so the GPU cost follows the dispatch count \
@@ -695,6 +696,7 @@ pub fn markdown(studies: &[Study], budgets: &Budgets, files: &Files) -> String {
          the frame must be one substep, only the methods without a stability limit run at all, and \
          the two-budget tables above say which of them to take for each budget.",
         iterations = cloth_core::integrator::XPBD_ITERATIONS,
+        multigrid_every = cloth_core::solver::SolverSpec::default().vbd_multigrid_every,
         xpbd_dispatches = first.map_or(0, xpbd_dispatches),
         name = first.map_or("", |s| s.name.as_str()),
     );
