@@ -103,6 +103,11 @@ vec4 pair_term(uint j, PairContext c) {
 // (cloth_core::vbd::FRICTION_SLIP_SPEED).
 const float FRICTION_SLIP_SPEED = 1e-4;
 
+// The band outside a collider's surface within which a vertex's local potential holds the
+// contact's curvature, and from beyond which a step into the collider stops at its surface, m
+// (cloth_core::vbd::CONTACT_BAND).
+const float CONTACT_BAND = 1e-4;
+
 // A 3 × 3 matrix by rows (cloth_core::real::Mat3).
 struct Mat3 {
     vec3 r0;
@@ -193,18 +198,23 @@ void add_local_contact(inout LocalTerms t, vec3 x, vec3 x0, Surface surface, vec
     float h = params.substep_dt;
     float inv_h = 1.0 / h;
     vec3 v_rel = (x - x0) * inv_h - velocity;
-    vec3 n;
+    vec3 contact_normal;
     vec3 force;
-    if (!contact_force(v_rel, surface, colliders[c].stiffness, colliders[c].damping, n, force)) {
-        return;
+    bool hit = contact_force(v_rel, surface, colliders[c].stiffness, colliders[c].damping, contact_normal, force);
+    vec3 n = surface.normal;
+    if (hit) {
+        t.g = t.g - force;
     }
-    t.g = t.g - force;
-    // (Inside, φ < 0: the stiffness block k_c n nᵀ; the damping block c n nᵀ while approaching.)
+    // (Inside, φ < 0, and in the band outside the surface, without a force there
+    // (CONTACT_BAND): the stiffness block k_c n nᵀ; the damping block c n nᵀ while approaching.)
     Mat3 blocks = mat3_scaled(mat3_outer(n, n), colliders[c].stiffness);
     if (dot(v_rel, n) < 0.0) {
         blocks = mat3_add(blocks, mat3_scaled(mat3_scaled(mat3_outer(n, n), colliders[c].damping), inv_h));
     }
     t.h = mat3_add(t.h, blocks);
+    if (!hit) {
+        return;
+    }
     float friction = EFFECT_FRICTION ? colliders[c].friction : 0.0;
     float normal_force = dot(force, n);
     if (friction <= 0.0 || normal_force <= 0.0) {
@@ -320,7 +330,7 @@ LocalTerms vertex_terms(uint index, uint i, uint j) {
         float t_end = velocities_in[index].w + h;
         for (uint c = 0u; c < params.collider_count; c++) {
             vec3 center = collider_center(c, t_end);
-            if (collider_distance(c, center, x) < 0.0) {
+            if (collider_distance(c, center, x) < CONTACT_BAND) {
                 add_local_contact(t, x, x0, collider_surface(c, center, x), collider_velocity(c, t_end), c);
             }
         }
@@ -329,14 +339,14 @@ LocalTerms vertex_terms(uint index, uint i, uint j) {
 }
 
 // Where a move of a vertex from `x` to `moved`, at the substep's end time `t_end`, stops: at the
-// surface of a collider it would enter from outside (cloth_core::vbd::surface_fraction).
+// surface of a collider it would enter from beyond its band (cloth_core::vbd::surface_fraction).
 vec3 stop_at_surfaces(vec3 x, vec3 moved, float t_end) {
     float fraction = 1.0;
     for (uint c = 0u; c < params.collider_count; c++) {
         vec3 center = collider_center(c, t_end);
         float start = collider_distance(c, center, x);
         float end = collider_distance(c, center, moved);
-        if (start >= 0.0 && end < 0.0) {
+        if (start > CONTACT_BAND && end < 0.0) {
             fraction = min(fraction, start / (start - end));
         }
     }

@@ -88,6 +88,11 @@ fn pair_term(j: u32, c: PairContext) -> vec4<f32> {
 // (cloth_core::vbd::FRICTION_SLIP_SPEED).
 const FRICTION_SLIP_SPEED: f32 = 1e-4;
 
+// The band outside a collider's surface within which a vertex's local potential holds the
+// contact's curvature, and from beyond which a step into the collider stops at its surface, m
+// (cloth_core::vbd::CONTACT_BAND).
+const CONTACT_BAND: f32 = 1e-4;
+
 // A 3 × 3 matrix by rows (cloth_core::real::Mat3).
 struct Mat3 {
     r0: vec3<f32>,
@@ -183,17 +188,20 @@ fn add_local_contact(t: ptr<function, LocalTerms>, x: vec3<f32>, x0: vec3<f32>, 
     let inv_h = 1.0 / h;
     let v_rel = (x - x0) * inv_h - velocity;
     let contact = contact_force(v_rel, surface, colliders[c].stiffness, colliders[c].damping);
-    if (!contact.hit) {
-        return;
+    let n = surface.normal;
+    if (contact.hit) {
+        (*t).g = (*t).g - contact.force;
     }
-    let n = contact.normal;
-    (*t).g = (*t).g - contact.force;
-    // (Inside, φ < 0: the stiffness block k_c n nᵀ; the damping block c n nᵀ while approaching.)
+    // (Inside, φ < 0, and in the band outside the surface, without a force there
+    // (CONTACT_BAND): the stiffness block k_c n nᵀ; the damping block c n nᵀ while approaching.)
     var blocks = mat3_scaled(mat3_outer(n, n), colliders[c].stiffness);
     if (dot(v_rel, n) < 0.0) {
         blocks = mat3_add(blocks, mat3_scaled(mat3_scaled(mat3_outer(n, n), colliders[c].damping), inv_h));
     }
     (*t).h = mat3_add((*t).h, blocks);
+    if (!contact.hit) {
+        return;
+    }
     var friction = 0.0;
     if (EFFECT_FRICTION) {
         friction = colliders[c].friction;
@@ -317,7 +325,7 @@ fn vertex_terms(index: u32, i: u32, j: u32) -> LocalTerms {
         let t_end = velocities_in[index].w + h;
         for (var c = 0u; c < params.collider_count; c++) {
             let center = collider_center(c, t_end);
-            if (collider_distance(c, center, x) < 0.0) {
+            if (collider_distance(c, center, x) < CONTACT_BAND) {
                 add_local_contact(&t, x, x0, collider_surface(c, center, x), collider_velocity(c, t_end), c);
             }
         }
@@ -326,14 +334,14 @@ fn vertex_terms(index: u32, i: u32, j: u32) -> LocalTerms {
 }
 
 // Where a move of a vertex from `x` to `moved`, at the substep's end time `t_end`, stops: at the
-// surface of a collider it would enter from outside (cloth_core::vbd::surface_fraction).
+// surface of a collider it would enter from beyond its band (cloth_core::vbd::surface_fraction).
 fn stop_at_surfaces(x: vec3<f32>, moved: vec3<f32>, t_end: f32) -> vec3<f32> {
     var fraction = 1.0;
     for (var c = 0u; c < params.collider_count; c++) {
         let center = collider_center(c, t_end);
         let start = collider_distance(c, center, x);
         let end = collider_distance(c, center, moved);
-        if ((start >= 0.0) & (end < 0.0)) {
+        if ((start > CONTACT_BAND) & (end < 0.0)) {
             fraction = min(fraction, start / (start - end));
         }
     }

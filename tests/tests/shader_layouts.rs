@@ -305,7 +305,8 @@ fn self_collision_constants_are_the_hosts() {
 }
 
 /// The implicit integrators' constants are the host's, in both shading languages: VBD's friction
-/// holds a vertex below the slip speed the CPU reference uses (`cloth_core::vbd::FRICTION_SLIP_SPEED`),
+/// holds a vertex below the slip speed the CPU reference uses (`cloth_core::vbd::FRICTION_SLIP_SPEED`)
+/// and holds the contact within the same band outside the surface (`cloth_core::vbd::CONTACT_BAND`),
 /// backward Euler's linearisation floors the springs' transverse stiffness as the reference's does
 /// (`cloth_core::implicit::TRANSVERSE_STIFFNESS_FLOOR`).
 #[test]
@@ -313,6 +314,7 @@ fn implicit_constants_are_the_hosts() {
     let shaders = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders");
     for (wgsl, glsl_file, name, expected) in [
         (cloth_wgpu::VBD_SHADER, "vbd.comp", "FRICTION_SLIP_SPEED", cloth_core::vbd::FRICTION_SLIP_SPEED),
+        (cloth_wgpu::VBD_SHADER, "vbd.comp", "CONTACT_BAND", cloth_core::vbd::CONTACT_BAND),
         (
             cloth_wgpu::IMPLICIT_SHADER,
             "implicit.comp",

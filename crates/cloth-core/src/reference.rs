@@ -885,7 +885,7 @@ impl<R: Real> ReferenceSimulator<R> {
                 terms.add_spring((x[i], x0[i]), (x[j], x0[j]), end.rest_length, p.stiffness[end.kind], c, h);
             }
             for (c, &(center, velocity)) in p.colliders.iter().zip(&colliders) {
-                if c.distance(center, x[i]) < R::zero() {
+                if c.distance(center, x[i]) < R::of(vbd::CONTACT_BAND) {
                     let mu = if friction { c.friction } else { R::zero() };
                     let surface = c.surface(center, x[i]);
                     terms.add_contact((x[i], x0[i]), surface, velocity, c.stiffness, c.damping, mu, h);

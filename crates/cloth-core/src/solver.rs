@@ -51,7 +51,9 @@ pub struct SolverSpec {
     /// each, so without it a large cloth at a large step does not feel its support within the
     /// substep (measured on the CPU, f32, one substep a frame over 2 s: `scenes/drape.ron` at
     /// 128 × 128 peaked at 296 J against its 8.83 J start without it, and never rose above the
-    /// start with it; `docs/model.md` gives the figures).
+    /// start with it; `docs/model.md` gives the figures). A stiff cloth at a large step needs it
+    /// more often: `scenes/stiff_drape.ron` at 256 × 256 and one substep a frame peaked at 16.9 J
+    /// with the default and stayed at its start with 1.
     pub vbd_multigrid_every: u32,
 }
 
