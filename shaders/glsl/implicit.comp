@@ -459,23 +459,8 @@ float apply_system(uint i, uint k, float beta) {
     return dot(p_i, q);
 }
 
-// The two-level sums (implicit.wgsl).
-shared vec2 sums[1024];
-
-// The sum of `value` over the workgroup's invocations, in every invocation (uniform control flow).
-vec2 workgroup_sum(vec2 value, uint local) {
-    sums[local] = value;
-    barrier();
-    for (uint s = gl_WorkGroupSize.x / 2u; s > 0u; s = s / 2u) {
-        if (local < s) {
-            sums[local] = sums[local] + sums[local + s];
-        }
-        barrier();
-    }
-    vec2 total = sums[0];
-    barrier();
-    return total;
-}
+// The two-level sums (implicit.wgsl) start with workgroup_sum.
+#include "workgroup_sum.glsl"
 
 // Workgroups of a per-vertex pass that hold vertices: one partial sum each.
 uint partial_count() {

@@ -649,22 +649,7 @@ void mg_restrict(uint k) {
     multigrid[sweep.coarse_vectors + nodes + k] = vec4(0.0);
 }
 
-// The workgroup's sums (uniform control flow).
-shared vec2 sums[1024];
-
-vec2 workgroup_sum(vec2 value, uint local) {
-    sums[local] = value;
-    barrier();
-    for (uint s = gl_WorkGroupSize.x / 2u; s > 0u; s = s / 2u) {
-        if (local < s) {
-            sums[local] = sums[local] + sums[local + s];
-        }
-        barrier();
-    }
-    vec2 total = sums[0];
-    barrier();
-    return total;
-}
+#include "workgroup_sum.glsl"
 
 // Pass 7: this level's partial sums of e·A e and b·e, one a workgroup (uniform control flow).
 void mg_model(uint k, uint local, uint group) {

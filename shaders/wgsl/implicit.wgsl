@@ -508,23 +508,7 @@ fn apply(i: u32, k: u32, beta: f32) -> f32 {
     return dot(p_i, q);
 }
 
-// The two-level sums (see the top of the file).
-var<workgroup> sums: array<vec2<f32>, 1024>;
-
-// The sum of `value` over the workgroup's invocations, in every invocation (uniform control flow).
-fn workgroup_sum(value: vec2<f32>, local: u32) -> vec2<f32> {
-    sums[local] = value;
-    workgroupBarrier();
-    for (var s = WORKGROUP_SIZE / 2u; s > 0u; s = s / 2u) {
-        if (local < s) {
-            sums[local] = sums[local] + sums[local + s];
-        }
-        workgroupBarrier();
-    }
-    let total = sums[0];
-    workgroupBarrier();
-    return total;
-}
+// The two-level sums (see the top of the file) start with workgroup_sum (workgroup_sum.wgsl).
 
 // Workgroups of a per-vertex pass that hold vertices: one partial sum each.
 fn partial_count() -> u32 {

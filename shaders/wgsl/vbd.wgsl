@@ -627,22 +627,7 @@ fn mg_restrict(k: u32) {
     multigrid[sweep.coarse_vectors + nodes + k] = vec4<f32>(0.0);
 }
 
-// The workgroup's sums (uniform control flow).
-var<workgroup> sums: array<vec2<f32>, 1024>;
-
-fn workgroup_sum(value: vec2<f32>, local: u32) -> vec2<f32> {
-    sums[local] = value;
-    workgroupBarrier();
-    for (var s = WORKGROUP_SIZE / 2u; s > 0u; s = s / 2u) {
-        if (local < s) {
-            sums[local] = sums[local] + sums[local + s];
-        }
-        workgroupBarrier();
-    }
-    let total = sums[0];
-    workgroupBarrier();
-    return total;
-}
+// (workgroup_sum: workgroup_sum.wgsl.)
 
 // Pass 7: this level's partial sums of e·A e and b·e, one a workgroup (uniform control flow).
 fn mg_model(k: u32, local: u32, group: u32) {

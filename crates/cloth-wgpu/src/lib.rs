@@ -69,24 +69,26 @@ pub const XPBD_SHADER: &str = concat!(
 );
 
 /// WGSL source of the Vertex Block Descent passes: `layout.wgsl`, `colliders.wgsl`,
-/// `common.wgsl`, `self_collision.wgsl`, `self_partners.wgsl`, `vbd.wgsl`.
+/// `common.wgsl`, `self_collision.wgsl`, `self_partners.wgsl`, `workgroup_sum.wgsl`, `vbd.wgsl`.
 pub const VBD_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
     include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/self_collision.wgsl"),
     include_str!("../../../shaders/wgsl/self_partners.wgsl"),
+    include_str!("../../../shaders/wgsl/workgroup_sum.wgsl"),
     include_str!("../../../shaders/wgsl/vbd.wgsl")
 );
 
 /// WGSL source of the backward-Euler passes: `layout.wgsl`, `colliders.wgsl`, `common.wgsl`,
-/// `self_collision.wgsl`, `self_partners.wgsl`, `implicit.wgsl`.
+/// `self_collision.wgsl`, `self_partners.wgsl`, `workgroup_sum.wgsl`, `implicit.wgsl`.
 pub const IMPLICIT_SHADER: &str = concat!(
     include_str!("../../../shaders/wgsl/layout.wgsl"),
     include_str!("../../../shaders/wgsl/colliders.wgsl"),
     include_str!("../../../shaders/wgsl/common.wgsl"),
     include_str!("../../../shaders/wgsl/self_collision.wgsl"),
     include_str!("../../../shaders/wgsl/self_partners.wgsl"),
+    include_str!("../../../shaders/wgsl/workgroup_sum.wgsl"),
     include_str!("../../../shaders/wgsl/implicit.wgsl")
 );
 
