@@ -328,7 +328,7 @@ fn backward_euler_lands_at_one_substep_a_frame(backend: &Backend) {
 /// VBD at one substep a frame of the drape and of the stiff drape, the cloth landing on the
 /// sphere at full speed: finite, under 2% of the radius inside it, and within the energy bound at
 /// every frame. 64 × 64 for 1 s on the CPU backends (without the multigrid correction the sweeps do
-/// not carry the sphere's support across the cloth: the f32 CPU peaked at 51.7 J and 1.04e4 J from
+/// not carry the sphere's support across the cloth: the f32 CPU peaked at 89.1 J and 1.07e4 J from
 /// 8.83 J), 32 × 32 for 0.5 s on lavapipe, 256 × 256 for 2 s with `CLOTH_FULL_SIZE`. The drape
 /// runs the default solver (10 sweeps, a correction before sweeps 1 and 6); the stiff drape a
 /// correction before every sweep, which its springs need at 256²: the f32 CPU peaked there at

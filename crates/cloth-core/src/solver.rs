@@ -50,8 +50,8 @@ pub struct SolverSpec {
     /// corrections in the default 10 sweeps). The sweeps carry a force about two rows of the grid
     /// each, so without it a large cloth at a large step does not feel its support within the
     /// substep (measured on the CPU, f32, one substep a frame over 2 s: `scenes/drape.ron` at
-    /// 128 × 128 peaked at 296 J against its 8.83 J start without it, and never rose above the
-    /// start with it; `docs/model.md` gives the figures). A stiff cloth at a large step needs it
+    /// 128 × 128 peaked at 996 J against its 8.83 J start without it, and never rose above the
+    /// start with it; `docs/model.md` gives the figures at 256²). A stiff cloth at a large step needs it
     /// more often: `scenes/stiff_drape.ron` at 256 × 256 and one substep a frame peaked at 16.9 J
     /// with the default and stayed at its start with 1.
     pub vbd_multigrid_every: u32,
