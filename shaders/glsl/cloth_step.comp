@@ -26,12 +26,12 @@ layout(constant_id = 101) const uint STAGE = 0u;
 // Self-collision's candidate lists, its hash and its control (self_hash.comp; placeholders
 // without SelfCollision).
 layout(set = 0, binding = 14, std430) readonly buffer SelfWords { uint self_words[]; };
-layout(set = 0, binding = 15, std430) readonly buffer SelfLinks { uint self_links[]; };
+layout(set = 0, binding = 15, std430) readonly buffer SelfLinks { uvec4 self_links[]; };
 layout(set = 0, binding = 16, std430) buffer SelfControlBuffer { SelfControl self_control; };
 
-// The hash's word at `at` (self_collision.glsl).
-uint link(uint at) {
-    return self_links[at];
+// The hash's words 4 at4 to 4 at4 + 3 (self_collision.glsl).
+uvec4 link_words(uint at4) {
+    return self_links[at4];
 }
 
 #include "self_collision.glsl"

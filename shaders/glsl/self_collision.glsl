@@ -4,7 +4,8 @@
 // it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
 // that rebuild): the GLSL twin of shaders/wgsl/self_collision.wgsl. Included, after layout.glsl,
 // by the kernels that evaluate or build it, which declare self_words and self_control and define
-// link(at), which reads the hash's words (cloth_gpu::layout::SelfHashTable, GpuSelfControl).
+// link_words(at4), which reads the hash's words 4 at4 to 4 at4 + 3 in one load
+// (cloth_gpu::layout::SelfHashTable, GpuSelfControl).
 // Parameters in params.self_contact, params.self_hash, params.self_table and params.self_lists
 // (cloth_gpu::layout::GpuSimParams).
 
@@ -39,9 +40,20 @@ uint heads_of(uint rebuilds) {
     return (rebuilds & 1u) * params.self_table.x;
 }
 
-// The vertex listed after vertex j in its bucket (NO_VERTEX: none): the last word of j's record.
-uint next_listed(uint j) {
-    return link(params.self_table.y + 4u * j + 3u);
+// The hash's word at `at`.
+uint link(uint at) {
+    return link_words(at >> 2u)[at & 3u];
+}
+
+// Vertex j's record, one 16-byte load: where it was at the last rebuild (the bits of three
+// floats, m; record_position) and the vertex listed after it in its bucket (w; NO_VERTEX: none).
+// A search walks a bucket's list record after record, each read once.
+uvec4 hash_record(uint j) {
+    return link_words((params.self_table.y >> 2u) + j);
+}
+
+vec3 record_position(uvec4 record) {
+    return uintBitsToFloat(record.xyz);
 }
 
 // The distances from x to the low faces of its cell `base`, per axis, m (the high faces are h
@@ -95,8 +107,7 @@ uint candidate(uint i, uint k) {
 // Where vertex j was at the last rebuild, m (the bits of three floats, the first words of j's
 // record).
 vec3 rebuild_position(uint j) {
-    uint at = params.self_table.y + 4u * j;
-    return uintBitsToFloat(uvec3(link(at), link(at + 1u), link(at + 2u)));
+    return record_position(hash_record(j));
 }
 
 // A search of the hash for the far partners of vertex i within the window r + W of x0, its
@@ -104,7 +115,12 @@ vec3 rebuild_position(uint j) {
 // around x0's (far_cell), and the vertices each lists (far_candidate). A search is two loops:
 //   for (uint k = 0u; k < 27u; k++) {
 //       FarCell cell = far_cell(search, k);
-//       for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) { if (far_candidate(search, cell, j)) { ... } }
+//       uint j = cell.head;
+//       while (j != NO_VERTEX) {
+//           uvec4 record = hash_record(j);
+//           if (far_candidate(search, cell, j, record)) { ... }
+//           j = record.w;
+//       }
 //   }
 struct FarSearch {
     // i's column and row.
@@ -137,11 +153,11 @@ FarCell far_cell(FarSearch search, uint k) {
     return FarCell(cell, link(search.heads + hash_bucket(cell)));
 }
 
-// Whether vertex j, listed in the cell's bucket, is a far partner of the search's vertex within
-// the window (and in this cell: a bucket two cells share lists both). The distance first, the
-// cheapest test that rejects most.
-bool far_candidate(FarSearch search, FarCell cell, uint j) {
-    vec3 x_j = rebuild_position(j);
+// Whether vertex j (its record), listed in the cell's bucket, is a far partner of the search's
+// vertex within the window (and in this cell: a bucket two cells share lists both). The distance
+// first, the cheapest test that rejects most.
+bool far_candidate(FarSearch search, FarCell cell, uint j, uvec4 record) {
+    vec3 x_j = record_position(record);
     vec3 d = x_j - search.x0;
     float window = params.self_hash.x;
     if (dot(d, d) >= window * window) {

@@ -33,16 +33,16 @@ layout(set = 0, binding = 1, std430) readonly buffer Positions { vec4 positions[
 // link), written by the insert pass and read by the candidates pass: each binds the buffer at its
 // own binding and a placeholder at the other (a dispatch may not both write and read a buffer through two bindings).
 layout(set = 0, binding = 2, std430) buffer SelfLinks { uint self_links[]; };
-layout(set = 0, binding = 3, std430) readonly buffer SelfLinksRead { uint self_links_read[]; };
+layout(set = 0, binding = 3, std430) readonly buffer SelfLinksRead { uvec4 self_links_read[]; };
 layout(set = 0, binding = 4, std430) buffer SelfWords { uint self_words[]; };
 layout(set = 0, binding = 5, std430) buffer SelfControlBuffer { SelfControl self_control; };
 // The rebuild's passes' workgroups, which the check writes and their indirect dispatches read
 // (the passes themselves bind a placeholder here: cloth_gpu::layout::REBUILD_PASSES).
 layout(set = 0, binding = 6, std430) buffer SelfDispatch { uvec4 self_dispatch[2]; };
 
-// The hash's word at `at`, as the candidates pass reads it (self_collision.glsl).
-uint link(uint at) {
-    return self_links_read[at];
+// The hash's words 4 at4 to 4 at4 + 3, as the candidates pass reads them (self_collision.glsl).
+uvec4 link_words(uint at4) {
+    return self_links_read[at4];
 }
 
 #include "self_collision.glsl"
@@ -127,19 +127,21 @@ void list_candidates(uint i, uint rebuilds) {
     FarSearch search = far_search(i, rebuild_position(i), heads_of(rebuilds));
     for (uint c = 0u; c < 27u; c++) {
         FarCell cell = far_cell(search, c);
-        for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-            if (!far_candidate(search, cell, j)) {
-                continue;
-            }
-            if (count < LIST_CAPACITY) {
-                uint k = count;
-                while (k > 0u && list[k - 1u] > j) {
-                    list[k] = list[k - 1u];
-                    k -= 1u;
+        uint j = cell.head;
+        while (j != NO_VERTEX) {
+            uvec4 record = hash_record(j);
+            if (far_candidate(search, cell, j, record)) {
+                if (count < LIST_CAPACITY) {
+                    uint k = count;
+                    while (k > 0u && list[k - 1u] > j) {
+                        list[k] = list[k - 1u];
+                        k -= 1u;
+                    }
+                    list[k] = j;
                 }
-                list[k] = j;
+                count += 1u;
             }
-            count += 1u;
+            j = record.w;
         }
     }
     uint n = params.vertex_count;
@@ -168,13 +170,16 @@ void list_candidates_in_lanes(uint group, uint local_index, uint rebuilds) {
         FarSearch search = far_search(i, rebuild_position(i), heads_of(rebuilds));
         for (uint c = lane; c < 27u; c += LISTING_LANES) {
             FarCell cell = far_cell(search, c);
-            for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
+            uint j = cell.head;
+            while (j != NO_VERTEX) {
+                uvec4 record = hash_record(j);
+                if (far_candidate(search, cell, j, record)) {
                     uint k = atomicAdd(found_count[slot], 1u);
                     if (k < LIST_CAPACITY) {
                         found[slot][k] = j;
                     }
                 }
+                j = record.w;
             }
         }
     }

@@ -37,10 +37,13 @@ vec4 sum_over_partners(uint i, uint vi, uint vj, PairContext c) {
         FarSearch search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
         for (uint k = 0u; k < 27u; k++) {
             FarCell cell = far_cell(search, k);
-            for (uint j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
+            uint j = cell.head;
+            while (j != NO_VERTEX) {
+                uvec4 record = hash_record(j);
+                if (far_candidate(search, cell, j, record)) {
                     sum += pair_term(j, c);
                 }
+                j = record.w;
             }
         }
     }

@@ -44,12 +44,12 @@ override STAGE: u32 = 0u;
 // Self-collision's candidate lists, its hash and its control (self_hash.wgsl; placeholders
 // without SelfCollision).
 @group(0) @binding(14) var<storage, read> self_words: array<u32>;
-@group(0) @binding(15) var<storage, read> self_links: array<u32>;
+@group(0) @binding(15) var<storage, read> self_links: array<vec4<u32>>;
 @group(0) @binding(16) var<storage, read_write> self_control: SelfControl;
 
-// The hash's word at `at` (self_collision.wgsl).
-fn link(at: u32) -> u32 {
-    return self_links[at];
+// The hash's words 4 at4 to 4 at4 + 3 (self_collision.wgsl).
+fn link_words(at4: u32) -> vec4<u32> {
+    return self_links[at4];
 }
 // 1: this pipeline reads (PACKED_IN) or writes (PACKED_OUT) the packed state; STAGE 0 only.
 override PACKED_IN: u32 = 0u;

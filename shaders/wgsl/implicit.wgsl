@@ -75,7 +75,7 @@ override IMPLICIT_PASS: u32 = 0u;
 // Self-collision's candidate lists, its hash and its control (self_hash.wgsl; placeholders
 // without SelfCollision).
 @group(0) @binding(14) var<storage, read> self_words: array<u32>;
-@group(0) @binding(15) var<storage, read> self_links: array<u32>;
+@group(0) @binding(15) var<storage, read> self_links: array<vec4<u32>>;
 @group(0) @binding(16) var<storage, read_write> self_control: SelfControl;
 
 const CG_SLOTS: u32 = 6u;
@@ -90,9 +90,9 @@ fn product_section(k: u32) -> u32 {
     return select(3u, 1u, (k & 1u) == 1u);
 }
 
-// The hash's word at `at` (self_collision.wgsl).
-fn link(at: u32) -> u32 {
-    return self_links[at];
+// The hash's words 4 at4 to 4 at4 + 3 (self_collision.wgsl).
+fn link_words(at4: u32) -> vec4<u32> {
+    return self_links[at4];
 }
 
 // The position of vertex `index` in the Newton iterate, m (common.wgsl's grid_normal: the wind

@@ -3,8 +3,8 @@
 // partners from each vertex's candidate list, which self_hash.wgsl rebuilds when the check finds
 // it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
 // that rebuild). Prepended, after common.wgsl, to the kernels that evaluate or build it, each of
-// which declares self_words and self_control and defines link(at), which reads the hash's words
-// (cloth_gpu::layout::SelfHashTable, GpuSelfControl). Parameters in params.self_contact,
+// which declares self_words and self_control and defines link_words(at4), which reads the hash's
+// words 4 at4 to 4 at4 + 3 in one load (cloth_gpu::layout::SelfHashTable, GpuSelfControl). Parameters in params.self_contact,
 // params.self_hash, params.self_table and params.self_lists (cloth_gpu::layout::GpuSimParams).
 
 // The most candidates a vertex keeps (cloth_core::self_collision::LIST_CAPACITY).
@@ -35,9 +35,20 @@ fn heads_of(rebuilds: u32) -> u32 {
     return (rebuilds & 1u) * params.self_table.x;
 }
 
-// The vertex listed after vertex j in its bucket (NO_VERTEX: none): the last word of j's record.
-fn next_listed(j: u32) -> u32 {
-    return link(params.self_table.y + 4u * j + 3u);
+// The hash's word at `at`.
+fn link(at: u32) -> u32 {
+    return link_words(at >> 2u)[at & 3u];
+}
+
+// Vertex j's record, one 16-byte load: where it was at the last rebuild (the bits of three f32,
+// m; record_position) and the vertex listed after it in its bucket (w; NO_VERTEX: none). A
+// search walks a bucket's list record after record, each read once.
+fn hash_record(j: u32) -> vec4<u32> {
+    return link_words((params.self_table.y >> 2u) + j);
+}
+
+fn record_position(record: vec4<u32>) -> vec3<f32> {
+    return bitcast<vec3<f32>>(record.xyz);
 }
 
 // The distances from x to the low and the high faces of its cell `base`, per axis, m: how far
@@ -97,8 +108,7 @@ fn candidate(i: u32, k: u32) -> u32 {
 
 // Where vertex j was at the last rebuild, m (the bits of three f32, the first words of j's record).
 fn rebuild_position(j: u32) -> vec3<f32> {
-    let at = params.self_table.y + 4u * j;
-    return bitcast<vec3<f32>>(vec3<u32>(link(at), link(at + 1u), link(at + 2u)));
+    return record_position(hash_record(j));
 }
 
 // A search of the hash for the far partners of vertex i within the window r + W of x0, its
@@ -106,7 +116,12 @@ fn rebuild_position(j: u32) -> vec3<f32> {
 // around x0's (far_cell), and the vertices each lists (far_candidate). A search is two loops:
 //   for (var k = 0u; k < 27u; k++) {
 //       let cell = far_cell(search, k);
-//       for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) { if (far_candidate(search, cell, j)) { ... } }
+//       var j = cell.head;
+//       while (j != NO_VERTEX) {
+//           let record = hash_record(j);
+//           if (far_candidate(search, cell, j, record)) { ... }
+//           j = record.w;
+//       }
 //   }
 struct FarSearch {
     // i's column and row.
@@ -139,11 +154,11 @@ fn far_cell(search: FarSearch, k: u32) -> FarCell {
     return FarCell(cell, link(search.heads + hash_bucket(cell)));
 }
 
-// Whether vertex j, listed in the cell's bucket, is a far partner of the search's vertex within
-// the window (and in this cell: a bucket two cells share lists both). The distance first, the
-// cheapest test that rejects most.
-fn far_candidate(search: FarSearch, cell: FarCell, j: u32) -> bool {
-    let x_j = rebuild_position(j);
+// Whether vertex j (its record), listed in the cell's bucket, is a far partner of the search's
+// vertex within the window (and in this cell: a bucket two cells share lists both). The distance
+// first, the cheapest test that rejects most.
+fn far_candidate(search: FarSearch, cell: FarCell, j: u32, record: vec4<u32>) -> bool {
+    let x_j = record_position(record);
     let d = x_j - search.x0;
     let window = params.self_hash.x;
     if (dot(d, d) >= window * window) {

@@ -25,16 +25,16 @@ override HASH_PASS: u32 = 0u;
 // link), written by the insert pass and read by the candidates pass: each binds the buffer at its
 // own binding and a placeholder at the other (a dispatch may not both write and read a buffer through two bindings).
 @group(0) @binding(2) var<storage, read_write> self_links: array<atomic<u32>>;
-@group(0) @binding(3) var<storage, read> self_links_read: array<u32>;
+@group(0) @binding(3) var<storage, read> self_links_read: array<vec4<u32>>;
 @group(0) @binding(4) var<storage, read_write> self_words: array<u32>;
 @group(0) @binding(5) var<storage, read_write> self_control: SelfControl;
 // The rebuild's passes' workgroups, which the check writes and their indirect dispatches read
 // (the passes themselves bind a placeholder here: cloth_gpu::layout::REBUILD_PASSES).
 @group(0) @binding(6) var<storage, read_write> self_dispatch: array<vec4<u32>, 2>;
 
-// The hash's word at `at`, as the candidates pass reads it (self_collision.wgsl).
-fn link(at: u32) -> u32 {
-    return self_links_read[at];
+// The hash's words 4 at4 to 4 at4 + 3, as the candidates pass reads them (self_collision.wgsl).
+fn link_words(at4: u32) -> vec4<u32> {
+    return self_links_read[at4];
 }
 
 // The reduction of the copies of the box of displacements.
@@ -117,19 +117,21 @@ fn list_candidates(i: u32, rebuilds: u32) {
     let search = far_search(i, rebuild_position(i), heads_of(rebuilds));
     for (var c = 0u; c < 27u; c++) {
         let cell = far_cell(search, c);
-        for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-            if (!far_candidate(search, cell, j)) {
-                continue;
-            }
-            if (count < LIST_CAPACITY) {
-                var k = count;
-                while ((k > 0u) && (list[k - 1u] > j)) {
-                    list[k] = list[k - 1u];
-                    k -= 1u;
+        var j = cell.head;
+        while (j != NO_VERTEX) {
+            let record = hash_record(j);
+            if (far_candidate(search, cell, j, record)) {
+                if (count < LIST_CAPACITY) {
+                    var k = count;
+                    while ((k > 0u) && (list[k - 1u] > j)) {
+                        list[k] = list[k - 1u];
+                        k -= 1u;
+                    }
+                    list[k] = j;
                 }
-                list[k] = j;
+                count += 1u;
             }
-            count += 1u;
+            j = record.w;
         }
     }
     let n = params.vertex_count;
@@ -161,13 +163,16 @@ fn list_candidates_in_lanes(group: u32, local: u32, rebuilds: u32) {
         let search = far_search(i, rebuild_position(i), heads_of(rebuilds));
         for (var c = lane; c < 27u; c += LISTING_LANES) {
             let cell = far_cell(search, c);
-            for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
+            var j = cell.head;
+            while (j != NO_VERTEX) {
+                let record = hash_record(j);
+                if (far_candidate(search, cell, j, record)) {
                     let k = atomicAdd(&found_count[slot], 1u);
                     if (k < LIST_CAPACITY) {
                         found[slot][k] = j;
                     }
                 }
+                j = record.w;
             }
         }
     }

@@ -35,10 +35,13 @@ fn sum_over_partners(i: u32, vi: u32, vj: u32, c: PairContext) -> vec4<f32> {
         let search = far_search(i, rebuild_position(i), heads_of(self_control.rebuilds));
         for (var k = 0u; k < 27u; k++) {
             let cell = far_cell(search, k);
-            for (var j = cell.head; j != NO_VERTEX; j = next_listed(j)) {
-                if (far_candidate(search, cell, j)) {
+            var j = cell.head;
+            while (j != NO_VERTEX) {
+                let record = hash_record(j);
+                if (far_candidate(search, cell, j, record)) {
                     sum += pair_term(j, c);
                 }
+                j = record.w;
             }
         }
     }

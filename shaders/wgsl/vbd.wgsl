@@ -61,7 +61,7 @@ fn position_in(index: u32) -> vec3<f32> {
 // Self-collision's candidate lists, its hash and its control (self_hash.wgsl; placeholders
 // without SelfCollision).
 @group(0) @binding(12) var<storage, read> self_words: array<u32>;
-@group(0) @binding(13) var<storage, read> self_links: array<u32>;
+@group(0) @binding(13) var<storage, read> self_links: array<vec4<u32>>;
 @group(0) @binding(14) var<storage, read_write> self_control: SelfControl;
 
 // The multigrid correction's levels, each at offsets its sweep block gives: the 3 × 3 stencil of
@@ -69,9 +69,9 @@ fn position_in(index: u32) -> vec3<f32> {
 // (a placeholder without the correction).
 @group(0) @binding(15) var<storage, read_write> multigrid: array<vec4<f32>>;
 
-// The hash's word at `at` (self_collision.wgsl).
-fn link(at: u32) -> u32 {
-    return self_links[at];
+// The hash's words 4 at4 to 4 at4 + 3 (self_collision.wgsl).
+fn link_words(at4: u32) -> vec4<u32> {
+    return self_links[at4];
 }
 
 // The self-collision term of partner j (self_partners.wgsl): its repulsion at the substep's

@@ -48,12 +48,12 @@ fn position_in(index: u32) -> vec3<f32> {
 // SelfCollision).
 @group(0) @binding(12) var<storage, read_write> self_corrections: array<vec4<f32>>;
 @group(0) @binding(13) var<storage, read> self_words: array<u32>;
-@group(0) @binding(14) var<storage, read> self_links: array<u32>;
+@group(0) @binding(14) var<storage, read> self_links: array<vec4<u32>>;
 @group(0) @binding(15) var<storage, read_write> self_control: SelfControl;
 
-// The hash's word at `at` (self_collision.wgsl).
-fn link(at: u32) -> u32 {
-    return self_links[at];
+// The hash's words 4 at4 to 4 at4 + 3 (self_collision.wgsl).
+fn link_words(at4: u32) -> vec4<u32> {
+    return self_links[at4];
 }
 
 // XPBD's correction of free vertex i (inverse mass w_i) for its contact with vertex j (w_j, 0
