@@ -4,8 +4,9 @@
 // it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
 // that rebuild). Prepended, after common.wgsl, to the kernels that evaluate or build it, each of
 // which declares self_words and self_control and defines link_words(at4), which reads the hash's
-// words 4 at4 to 4 at4 + 3 in one load (cloth_gpu::layout::SelfHashTable, GpuSelfControl). Parameters in params.self_contact,
-// params.self_hash, params.self_table and params.self_lists (cloth_gpu::layout::GpuSimParams).
+// words 4 at4 to 4 at4 + 3 in one load (cloth_gpu::layout::SelfHashTable, GpuSelfControl).
+// Parameters in params.self_contact, params.self_hash, params.self_table and params.self_lists
+// (cloth_gpu::layout::GpuSimParams).
 
 // The most candidates a vertex keeps (cloth_core::self_collision::LIST_CAPACITY).
 const LIST_CAPACITY: u32 = 32u;
