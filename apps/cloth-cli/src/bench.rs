@@ -361,7 +361,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
 fn effects(args: &BenchArgs, plan: &Plan) -> Result<()> {
     let mut csv = String::from(
         "backend,adapter,grid,substeps,frames,repeats,row,effects,ms_per_frame,ms_spread,added,added_ms,\
-         added_low_ms,added_high_ms,timer\n",
+         added_low_ms,added_high_ms,timer,timed_frames,checks,rebuilds,overflowed_lists\n",
     );
     let mut measured = 0;
     let mut unavailable = vec![false; plan.backends.len()];
@@ -430,16 +430,37 @@ fn effects(args: &BenchArgs, plan: &Plan) -> Result<()> {
                     (format!("{:.6}", d.range().0), format!("{:.6}", d.range().1)),
                 ),
             };
+            let lists = r
+                .candidate_lists
+                .map_or(",,".to_string(), |l| format!("{},{},{}", l.checks, l.rebuilds, l.overflowed_lists));
             csv += &format!(
-                "{},\"{}\",{nx}x{ny},{substeps},{},{},{},{},{ms:.6},{:.6},{verdict},{added_ms},{low},{high},{timer}\n",
+                "{},\"{}\",{nx}x{ny},{substeps},{},{},{},{},{ms:.6},{:.6},{verdict},{added_ms},{low},{high},{timer},{},{lists}\n",
                 backend.name,
                 adapter.replace('"', "'"),
                 args.frames,
                 args.repeats,
                 r.label(),
                 r.step.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
-                r.ms_per_frame.spread()
+                r.ms_per_frame.spread(),
+                r.timed_frames
             );
+        }
+        for r in rows {
+            if let Some(l) = r.candidate_lists {
+                let per_frame = |n: u64| n as f64 / f64::from(r.timed_frames.max(1));
+                out!(
+                    "  self-collision's candidate lists over the {} timed frames of row '{}': {} checks ({:.1} a \
+                     frame), {} rebuilds ({:.1} a frame), {} lists overflowed (a vertex whose list overflows \
+                     searches the hash at every substep until the next rebuild)",
+                    r.timed_frames,
+                    r.label(),
+                    l.checks,
+                    per_frame(l.checks),
+                    l.rebuilds,
+                    per_frame(l.rebuilds),
+                    l.overflowed_lists
+                )?;
+            }
         }
         out!(
             "  ms/frame: the median of the timings; spread: their interquartile range; added: the median of the \

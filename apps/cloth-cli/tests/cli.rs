@@ -538,6 +538,52 @@ fn effect_costs_are_medians_with_a_verdict_on_the_noise() {
     let _ = std::fs::remove_file(csv);
 }
 
+/// With `SelfCollision` on a GPU backend, `cloth bench --effects` reports how its candidate lists
+/// fared over the timed frames, in the CSV's last columns: on the row that adds the effect, checks
+/// (at least one a frame) and no more rebuilds than checks; empty on the rows without it.
+#[test]
+fn effect_costs_report_self_collisions_candidate_lists() {
+    let csv = std::env::temp_dir().join(format!("cloth-effects-lists-{}.csv", std::process::id()));
+    let out = cloth(&[
+        "bench",
+        "--effects",
+        "--scene",
+        "scenes/self_collision_bench.ron",
+        "--backends",
+        "vulkano",
+        "--grids",
+        "16",
+        "--frames",
+        "2",
+        "--repeats",
+        "3",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if stdout.contains("skipped") && std::env::var_os("CI").is_none() {
+        eprintln!("SKIPPED: no GPU adapter here: {stdout}");
+        return;
+    }
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("self-collision's candidate lists over the 6 timed frames"), "{stdout}");
+    let table = std::fs::read_to_string(&csv).expect("the CSV was written");
+    let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
+    let at = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}")) - 2;
+    for row in table.lines().skip(1) {
+        let r: Vec<&str> = row.split_once("\",").expect("a quoted adapter").1.split(',').collect();
+        let lists = [r[at("checks")], r[at("rebuilds")], r[at("overflowed_lists")]];
+        if !r[at("effects")].contains("SelfCollision") {
+            assert_eq!(lists, ["", "", ""], "no lists without the effect: {row}");
+            continue;
+        }
+        assert_eq!(r[at("timed_frames")], "6", "{row}");
+        let [checks, rebuilds, _]: [u64; 3] = lists.map(|v| v.parse().unwrap_or_else(|_| panic!("{v:?}: {row}")));
+        assert!(checks >= 6 && rebuilds <= checks, "{row}");
+    }
+    let _ = std::fs::remove_file(csv);
+}
+
 /// `cloth bench`'s GPU tuning flags reach the backends: `--tiling on|off` chooses the tiled kernel
 /// for semi-implicit Euler on every GPU backend, whatever the device (lavapipe does not tile by
 /// default), and `--packed-state off` keeps the two `vec4`s: the CSV's fused substeps and state.

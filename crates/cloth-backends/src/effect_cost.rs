@@ -17,6 +17,7 @@
 use std::time::Instant;
 
 use cloth_core::colliders::ColliderKind;
+use cloth_core::self_collision::CandidateListStats;
 use cloth_core::{Effect, EffectSet, Scene, SimError, Substeps, stability};
 
 use crate::Backend;
@@ -71,6 +72,12 @@ pub struct EffectCost {
     /// What this effect costs over the previous row, from the paired differences of the two
     /// rows' timings (`None` for the bare row): a cost, a saving, or inside the noise.
     pub added_cost: Option<Difference>,
+    /// With `SelfCollision` on a GPU backend: how its candidate lists fared over the timed frames
+    /// (the checks, the rebuilds they ordered and the lists that overflowed), which is where
+    /// the effect's cost comes from. `None` elsewhere.
+    pub candidate_lists: Option<CandidateListStats>,
+    /// The frames those counts cover: `repeats` times `frames`.
+    pub timed_frames: u32,
 }
 
 impl EffectCost {
@@ -205,9 +212,9 @@ pub fn measure(
         adapter_name = sim.adapter_name();
         // Warm-up: pipeline compilation and first-use allocations, then wait for it.
         sim.advance(1)?;
-        sim.diagnostics()?;
+        let warmed = sim.diagnostics()?.candidate_lists;
         let gpu_timed = sim.set_gpu_timing(true);
-        sims.push((sim, gpu_timed));
+        sims.push((sim, gpu_timed, warmed));
     }
     let total = steps.len() * repeats as usize;
     let mut timings = vec![Vec::with_capacity(repeats as usize); steps.len()];
@@ -215,7 +222,7 @@ pub fn measure(
     for r in 0..repeats as usize {
         let order: Vec<usize> = if r % 2 == 0 { (0..steps.len()).collect() } else { (0..steps.len()).rev().collect() };
         for k in order {
-            let (sim, gpu_timed) = &mut sims[k];
+            let (sim, gpu_timed, _) = &mut sims[k];
             let start = Instant::now();
             sim.advance(frames)?;
             let seconds = match sim.take_gpu_seconds()? {
@@ -232,10 +239,26 @@ pub fn measure(
         }
     }
     let mut rows: Vec<EffectCost> = Vec::with_capacity(steps.len());
-    for ((step, (_, gpu_timed)), times) in steps.into_iter().zip(&sims).zip(timings) {
+    for ((step, (sim, gpu_timed, warmed)), times) in steps.into_iter().zip(&mut sims).zip(timings) {
         let ms_per_frame = Samples::new(times);
         let added_cost = rows.last().map(|previous| Difference::of(&ms_per_frame.paired_minus(&previous.ms_per_frame)));
-        rows.push(EffectCost { step, ms_per_frame, gpu_timed: *gpu_timed, added_cost });
+        // The timed frames' share of the counts: those of the warm-up frame taken off.
+        let candidate_lists = match (sim.diagnostics()?.candidate_lists, *warmed) {
+            (Some(now), Some(before)) => Some(CandidateListStats {
+                checks: now.checks.saturating_sub(before.checks),
+                rebuilds: now.rebuilds.saturating_sub(before.rebuilds),
+                overflowed_lists: now.overflowed_lists.saturating_sub(before.overflowed_lists),
+            }),
+            (now, _) => now,
+        };
+        rows.push(EffectCost {
+            step,
+            ms_per_frame,
+            gpu_timed: *gpu_timed,
+            added_cost,
+            candidate_lists,
+            timed_frames: frames * repeats,
+        });
     }
     Ok(Breakdown { adapter: adapter_name, substeps: substeps(scene), frames, repeats, rows })
 }
