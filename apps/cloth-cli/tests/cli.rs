@@ -10,6 +10,33 @@ fn cloth(args: &[&str]) -> std::process::Output {
         .expect("the cloth binary runs")
 }
 
+/// A CSV `cloth bench` wrote: each row's fields after the quoted adapter (the second column, which
+/// may hold commas), and a column's index among those fields.
+struct BenchCsv {
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+}
+
+impl BenchCsv {
+    fn read(path: &std::path::Path) -> Self {
+        let table = std::fs::read_to_string(path).expect("the CSV was written");
+        let mut lines = table.lines();
+        let header = lines.next().expect("a header").split(',').map(str::to_string).collect();
+        let after_adapter =
+            |r: &str| r.split_once("\",").expect("a quoted adapter").1.split(',').map(str::to_string).collect();
+        Self { header, rows: lines.map(after_adapter).collect() }
+    }
+
+    /// The rows' fields, borrowed.
+    fn fields(&self) -> Vec<Vec<&str>> {
+        self.rows.iter().map(|r| r.iter().map(String::as_str).collect()).collect()
+    }
+
+    fn at(&self, name: &str) -> usize {
+        self.header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}")) - 2
+    }
+}
+
 fn json(args: &[&str]) -> serde_json::Value {
     let out = cloth(args);
     assert!(out.status.success(), "cloth {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
@@ -504,15 +531,13 @@ fn effect_costs_are_medians_with_a_verdict_on_the_noise() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
-    let table = std::fs::read_to_string(&csv).expect("the CSV was written");
-    let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
-    let at = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}")) - 2;
+    let table = BenchCsv::read(&csv);
+    let at = |name: &str| table.at(name);
     let scene = cloth_core::Scene::from_ron_str(include_str!("../../../scenes/flag.ron")).unwrap();
-    let rows: Vec<Vec<&str>> =
-        table.lines().skip(1).map(|r| r.split_once("\",").expect("a quoted adapter").1.split(',').collect()).collect();
+    let rows = table.fields();
     // The bare row, one per effect, and one per collider kind after the first (Contact's).
     let kinds: std::collections::BTreeSet<_> = scene.colliders.iter().map(|c| c.kind()).collect();
-    assert_eq!(rows.len(), 1 + scene.effects.iter().count() + kinds.len() - 1, "{table}");
+    assert_eq!(rows.len(), 1 + scene.effects.iter().count() + kinds.len() - 1, "{rows:?}");
     let labels: Vec<&str> = rows.iter().map(|r| r[at("row")]).collect();
     assert!(labels.contains(&"+ Contact (sphere)"), "{labels:?}");
     for (k, r) in rows.iter().enumerate() {
@@ -544,22 +569,10 @@ fn effect_costs_are_medians_with_a_verdict_on_the_noise() {
 #[test]
 fn effect_costs_report_self_collisions_candidate_lists() {
     let csv = std::env::temp_dir().join(format!("cloth-effects-lists-{}.csv", std::process::id()));
-    let out = cloth(&[
-        "bench",
-        "--effects",
-        "--scene",
-        "scenes/self_collision_bench.ron",
-        "--backends",
-        "vulkano",
-        "--grids",
-        "16",
-        "--frames",
-        "2",
-        "--repeats",
-        "3",
-        "--csv",
-        csv.to_str().unwrap(),
-    ]);
+    let flags = "bench --effects --scene scenes/self_collision_bench.ron --backends vulkano --grids 16 --frames 2";
+    let mut args: Vec<&str> = flags.split(' ').chain(["--repeats", "3", "--csv"]).collect();
+    args.push(csv.to_str().unwrap());
+    let out = cloth(&args);
     let stdout = String::from_utf8_lossy(&out.stdout);
     if stdout.contains("skipped") && std::env::var_os("CI").is_none() {
         eprintln!("SKIPPED: no GPU adapter here: {stdout}");
@@ -567,11 +580,10 @@ fn effect_costs_report_self_collisions_candidate_lists() {
     }
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("self-collision's candidate lists over the 6 timed frames"), "{stdout}");
-    let table = std::fs::read_to_string(&csv).expect("the CSV was written");
-    let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
-    let at = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}")) - 2;
-    for row in table.lines().skip(1) {
-        let r: Vec<&str> = row.split_once("\",").expect("a quoted adapter").1.split(',').collect();
+    let table = BenchCsv::read(&csv);
+    let at = |name: &str| table.at(name);
+    for r in table.fields() {
+        let row = r.join(",");
         let lists = [r[at("checks")], r[at("rebuilds")], r[at("overflowed_lists")]];
         if !r[at("effects")].contains("SelfCollision") {
             assert_eq!(lists, ["", "", ""], "no lists without the effect: {row}");
@@ -617,16 +629,12 @@ fn bench_tuning_flags_choose_the_kernels() {
             eprintln!("SKIPPED: no GPU adapter here: {stdout}");
             return;
         }
-        let table = std::fs::read_to_string(&csv).unwrap();
-        let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
-        // Fields after the quoted adapter (the second column, which may hold commas).
-        let at = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}")) - 2;
-        let rows: Vec<&str> = table.lines().skip(1).collect();
-        assert_eq!(rows.len(), 2, "{table}");
+        let table = BenchCsv::read(&csv);
+        let rows = table.fields();
+        assert_eq!(rows.len(), 2, "{rows:?}");
         for row in rows {
-            let after_adapter: Vec<&str> = row.split_once("\",").expect("a quoted adapter").1.split(',').collect();
-            assert_eq!(after_adapter[at("fused_substeps")], fused, "{flags:?}: {row}");
-            assert_eq!(after_adapter[at("state_bytes_per_vertex")], state, "{flags:?}: {row}");
+            assert_eq!(row[table.at("fused_substeps")], fused, "{flags:?}: {row:?}");
+            assert_eq!(row[table.at("state_bytes_per_vertex")], state, "{flags:?}: {row:?}");
         }
         let _ = std::fs::remove_file(csv);
     }
