@@ -27,7 +27,7 @@ impl BenchCsv {
         Self { header, rows: lines.map(after_adapter).collect() }
     }
 
-    /// The rows' fields, borrowed.
+    /// Each row's fields as string slices.
     fn fields(&self) -> Vec<Vec<&str>> {
         self.rows.iter().map(|r| r.iter().map(String::as_str).collect()).collect()
     }
