@@ -412,6 +412,7 @@ fn effects(args: &BenchArgs, plan: &Plan) -> Result<()> {
         )?;
         out!("  {:<22} {:>10} {:>8}  {:<40} share of the whole", "row", "ms/frame", "spread", "added")?;
         let whole = breakdown.whole_ms().max(f64::MIN_POSITIVE);
+        let timed_frames = breakdown.frames * breakdown.repeats;
         for r in rows {
             let ms = r.ms_per_frame.median();
             // Only a cost that stands out of the noise gets a bar and a share.
@@ -442,17 +443,17 @@ fn effects(args: &BenchArgs, plan: &Plan) -> Result<()> {
                 r.label(),
                 r.step.effects.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" "),
                 r.ms_per_frame.spread(),
-                r.timed_frames
+                timed_frames
             );
         }
         for r in rows {
             if let Some(l) = r.candidate_lists {
-                let per_frame = |n: u64| n as f64 / f64::from(r.timed_frames.max(1));
+                let per_frame = |n: u64| n as f64 / f64::from(timed_frames.max(1));
                 out!(
                     "  self-collision's candidate lists over the {} timed frames of row '{}': {} checks ({:.1} a \
                      frame), {} rebuilds ({:.1} a frame), {} lists overflowed (a vertex whose list overflows \
                      searches the hash at every substep until the next rebuild)",
-                    r.timed_frames,
+                    timed_frames,
                     r.label(),
                     l.checks,
                     per_frame(l.checks),

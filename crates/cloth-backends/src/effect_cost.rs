@@ -73,11 +73,9 @@ pub struct EffectCost {
     /// rows' timings (`None` for the bare row): a cost, a saving, or inside the noise.
     pub added_cost: Option<Difference>,
     /// With `SelfCollision` on a GPU backend: how its candidate lists fared over the timed frames
-    /// (the checks, the rebuilds they ordered and the lists that overflowed), which is where
-    /// the effect's cost comes from. `None` elsewhere.
+    /// (`repeats` times `frames`: the checks, the rebuilds they ordered and the lists that
+    /// overflowed), which is where the effect's cost comes from. `None` elsewhere.
     pub candidate_lists: Option<CandidateListStats>,
-    /// The frames those counts cover: `repeats` times `frames`.
-    pub timed_frames: u32,
 }
 
 impl EffectCost {
@@ -251,14 +249,7 @@ pub fn measure(
             }),
             (now, _) => now,
         };
-        rows.push(EffectCost {
-            step,
-            ms_per_frame,
-            gpu_timed: *gpu_timed,
-            added_cost,
-            candidate_lists,
-            timed_frames: frames * repeats,
-        });
+        rows.push(EffectCost { step, ms_per_frame, gpu_timed: *gpu_timed, added_cost, candidate_lists });
     }
     Ok(Breakdown { adapter: adapter_name, substeps: substeps(scene), frames, repeats, rows })
 }
