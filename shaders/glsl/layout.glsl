@@ -2,7 +2,7 @@
 // (checked by tests/tests/shader_layouts.rs), with the two bindings all kernels share
 // (0: parameters, 1: colliders) and the colliders' signed distances (colliders.glsl). Each kernel declares its other bindings.
 
-// cloth_gpu::layout::GpuSimParams (448 bytes, std140).
+// cloth_gpu::layout::GpuSimParams (656 bytes, std140).
 layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 gravity;       // m/s² (xyz)
     vec4 stiffness;     // N/m by spring kind: structural, shear, bend
@@ -24,6 +24,9 @@ layout(set = 0, binding = 0, std140) uniform SimParams {
     vec4 self_contact;  // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     vec4 self_hash;     // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
     uvec4 self_table;   // buckets T; first record (position at the rebuild, link); unused; unused (cloth_gpu::layout::SelfHashTable)
+    // The directions of the motion bound (xyz) and the factor sec θ / |u| that turns the extent
+    // along each into a bound on two vertices' relative displacement (w).
+    vec4 motion_directions[13];
     vec4 self_lists;    // the margin less its rounding share, m; lookahead, m; substeps between checks
 } params;
 
@@ -39,13 +42,14 @@ struct CgCounters {
     uint pad1;
 };
 
-// cloth_gpu::layout::GpuSelfControl (2096 bytes, std430): self-collision's check and the
+// cloth_gpu::layout::GpuSelfControl (6704 bytes, std430): self-collision's check and the
 // substeps share it.
 struct SelfControl {
     uvec4 full[2];          // workgroups of the insert and candidates passes for a rebuild
-    // MOTION_COPIES copies of the box of displacements since the check, as order keys (atomic):
-    // the highest of x, y, z at 0 to 2, the highest inverted ones (the lowest displacements) at 4 to 6.
-    uint motion[64][8];
+    // MOTION_COPIES copies of the extents of the displacements since the check, as order keys of
+    // their projections on the 13 motion directions (atomic): the highest along direction k at
+    // k, the highest inverted one (the lowest projection) at 13 + k.
+    uint motion[64][26];
     float bound;            // the relative motion since the rebuild, at most, m
     uint rebuilds;
     uint checks;

@@ -15,9 +15,12 @@
 #define NEAR_REACH 2
 // No vertex: the end of a search.
 #define NO_VERTEX 0xffffffffu
-// The copies of the box of displacements in self_control that the workgroups of a kernel
-// spread their atomics over (cloth_gpu::layout::MOTION_COPIES).
+// The copies of the extents of the displacements in self_control that the workgroups of a
+// kernel spread their atomics over (cloth_gpu::layout::MOTION_COPIES).
 #define MOTION_COPIES 64u
+// The directions the extents are measured along, params.motion_directions
+// (cloth_gpu::layout::MOTION_DIRECTIONS).
+#define MOTION_DIRECTIONS 13u
 
 // The hash cell holding x: floor(x / h) per axis (cloth_core::self_collision::cell_of).
 ivec3 hash_cell(vec3 x) {
@@ -224,8 +227,9 @@ vec3 limit_velocity(vec3 v) {
     return v;
 }
 
-// The key of f whose unsigned order is the order of the numbers (order_key): the box of the
-// substep's displacements is kept with atomicMax on keys, and on inverted keys for its minimum.
+// The key of f whose unsigned order is the order of the numbers (order_key): the extents of
+// the substep's displacements are kept with atomicMax on keys, and on inverted keys for the
+// lowest projections.
 uint order_key(float f) {
     uint bits = floatBitsToUint(f);
     return (bits & 0x80000000u) != 0u ? ~bits : bits | 0x80000000u;
@@ -236,40 +240,42 @@ float from_order_key(uint key) {
     return uintBitsToFloat((key & 0x80000000u) != 0u ? key & 0x7fffffffu : ~key);
 }
 
-// The workgroup's box of displacements, as keys: x, y, z highest, then x, y, z lowest (inverted).
-shared uint motion_keys[6];
+// The workgroup's extents of displacements, as keys: the highest projection on each of the
+// MOTION_DIRECTIONS, then the highest inverted ones (the lowest projections).
+shared uint motion_keys[2u * MOTION_DIRECTIONS];
 
-// Before a kernel that records the motion (uniform control flow): the workgroup's box is empty.
+// Before a kernel that records the motion (uniform control flow): the workgroup's extents are
+// empty.
 void clear_motion(uint local_index) {
-    if (local_index < 6u) {
+    if (local_index < 2u * MOTION_DIRECTIONS) {
         motion_keys[local_index] = 0u;
     }
     barrier();
 }
 
 // Adds a vertex's displacement over the substep (moved.xyz, m; moved.w 0 where the invocation
-// has no vertex) to the workgroup's box, and the box to one of self_control's copies, chosen by
-// the workgroup's index `group` (uniform control flow).
+// has no vertex) to the workgroup's extents, and those to one of self_control's copies, chosen
+// by the workgroup's index `group` (uniform control flow).
 void record_motion(vec4 moved, uint local_index, uint group) {
     // (Each atomic maximum is skipped where it would change nothing: most invocations of a
     // cloth that moves as a whole.)
     if (moved.w != 0.0) {
-        for (uint k = 0u; k < 6u; k++) {
-            uint component = order_key(moved[k % 3u]);
-            uint key = k >= 3u ? ~component : component;
+        for (uint k = 0u; k < MOTION_DIRECTIONS; k++) {
+            uint key = order_key(dot(moved.xyz, params.motion_directions[k].xyz));
             if (key > motion_keys[k]) {
                 atomicMax(motion_keys[k], key);
+            }
+            if (~key > motion_keys[MOTION_DIRECTIONS + k]) {
+                atomicMax(motion_keys[MOTION_DIRECTIONS + k], ~key);
             }
         }
     }
     barrier();
-    if (local_index < 6u) {
+    if (local_index < 2u * MOTION_DIRECTIONS) {
         uint key = motion_keys[local_index];
-        // High keys at 0 to 2 of a copy, low ones at 4 to 6.
         uint copy = group % MOTION_COPIES;
-        uint slot = local_index + local_index / 3u;
-        if (key > self_control.motion[copy][slot]) {
-            atomicMax(self_control.motion[copy][slot], key);
+        if (key > self_control.motion[copy][local_index]) {
+            atomicMax(self_control.motion[copy][local_index], key);
         }
     }
 }

@@ -4,7 +4,8 @@
 // Self-collision's check, and the rebuild of its spatial hash and candidate lists
 // (cloth_core::self_collision; cloth_gpu::layout::SelfHashTable lays the buffers out): the GLSL
 // twin of shaders/wgsl/self_hash.wgsl.
-//   2 check:      one workgroup adds the box of the displacements since the last check to the
+//   2 check:      one workgroup adds the relative motion the extents of the displacements since
+//                 the last check allow to the
 //                 bound on the relative motion since the rebuild, and sizes the two passes below:
 //                 fully when the bound plus the lookahead reaches the margin (a rebuild, which
 //                 flips the table of heads the rebuild fills), else zero;
@@ -47,8 +48,8 @@ uvec4 link_words(uint at4) {
 
 #include "self_collision.glsl"
 
-// The reduction of the copies of the box of displacements.
-shared uint box_keys[6];
+// The reduction of the copies of the extents of the displacements.
+shared uint extent_keys[2u * MOTION_DIRECTIONS];
 // The rebuilds so far, read once a workgroup (the insert and candidates passes).
 shared uint rebuilds_so_far;
 // Vertices the candidates pass lists a workgroup, and invocations a vertex
@@ -60,18 +61,17 @@ shared uint found[LISTING_VERTICES][LIST_CAPACITY];
 shared uint found_count[LISTING_VERTICES];
 
 // Passes 2 and 3, one workgroup (cloth_core::self_collision::{MotionBound, rebuild_due}): the
-// first MOTION_COPIES invocations gather the copies of the box (and clear them), the first
+// first MOTION_COPIES invocations gather the copies of the extents (and clear them), the first
 // invocation decides.
 void check(uint local_index) {
-    if (local_index < 6u) {
-        box_keys[local_index] = 0u;
+    if (local_index < 2u * MOTION_DIRECTIONS) {
+        extent_keys[local_index] = 0u;
     }
     barrier();
     if (local_index < MOTION_COPIES) {
-        for (uint k = 0u; k < 6u; k++) {
-            uint slot = k + k / 3u;
-            atomicMax(box_keys[k], self_control.motion[local_index][slot]);
-            self_control.motion[local_index][slot] = 0u;
+        for (uint k = 0u; k < 2u * MOTION_DIRECTIONS; k++) {
+            atomicMax(extent_keys[k], self_control.motion[local_index][k]);
+            self_control.motion[local_index][k] = 0u;
         }
     }
     barrier();
@@ -79,12 +79,21 @@ void check(uint local_index) {
         return;
     }
     float bound = self_control.bound;
-    if (box_keys[0] != 0u) {
-        vec3 extent;
-        for (uint k = 0u; k < 3u; k++) {
-            extent[k] = from_order_key(box_keys[k]) - from_order_key(~box_keys[k + 3u]);
+    if (extent_keys[0] != 0u) {
+        // relative_motion_bound: the box's diagonal, or the widest extent times its factor
+        // (whichever is less; a diagonal that is not a number, from a displacement that is not,
+        // stays).
+        vec3 box;
+        float polytope = 0.0;
+        for (uint k = 0u; k < MOTION_DIRECTIONS; k++) {
+            float extent = from_order_key(extent_keys[k]) - from_order_key(~extent_keys[MOTION_DIRECTIONS + k]);
+            if (k < 3u) {
+                box[k] = extent;
+            }
+            polytope = max(polytope, extent * params.motion_directions[k].w);
         }
-        bound += params.self_lists.z * sqrt(dot(extent, extent));
+        float diagonal = sqrt(dot(box, box));
+        bound += params.self_lists.z * (polytope < diagonal ? polytope : diagonal);
     }
     // (Written so that a bound that is not a number rebuilds.)
     bool due = HASH_PASS == 3u || !(bound + params.self_lists.y <= params.self_lists.x);

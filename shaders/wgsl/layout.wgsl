@@ -2,7 +2,7 @@
 // declared once here and prepended to every WGSL module that uses them (the compute kernels and
 // the inspector's render.wgsl). A test reflects every such module against the Rust types.
 
-// cloth_gpu::layout::GpuSimParams (448 bytes).
+// cloth_gpu::layout::GpuSimParams (656 bytes).
 struct SimParams {
     gravity: vec4<f32>,      // m/s² (xyz)
     stiffness: vec4<f32>,    // N/m by spring kind: structural, shear, bend
@@ -24,6 +24,9 @@ struct SimParams {
     self_contact: vec4<f32>, // self-collision: thickness r, m; k_s, N/m; c_s, N·s/m; friction μ
     self_hash: vec4<f32>,    // the candidate window r + W (the hash's cell side), m; speed limit, m/s; grid spacing along u, v, m
     self_table: vec4<u32>,   // buckets T; first record (position at the rebuild, link); unused; unused (cloth_gpu::layout::SelfHashTable)
+    // The directions of the motion bound (xyz) and the factor sec θ / |u| that turns the extent
+    // along each into a bound on two vertices' relative displacement (w).
+    motion_directions: array<vec4<f32>, 13>,
     self_lists: vec4<f32>,   // the margin less its rounding share, m; lookahead, m; substeps between checks
 }
 
@@ -109,13 +112,14 @@ struct CgStep {
     pad2: u32,
 }
 
-// cloth_gpu::layout::GpuSelfControl (2096 bytes): self-collision's check and the substeps share
+// cloth_gpu::layout::GpuSelfControl (6704 bytes): self-collision's check and the substeps share
 // it.
 struct SelfControl {
     full: array<vec4<u32>, 2>,              // workgroups of the insert and candidates passes for a rebuild
-    // MOTION_COPIES copies of the box of displacements since the check, as order keys: the
-    // highest of x, y, z at 0 to 2, the highest inverted ones (the lowest displacements) at 4 to 6.
-    motion: array<array<atomic<u32>, 8>, 64>,
+    // MOTION_COPIES copies of the extents of the displacements since the check, as order keys of
+    // their projections on the 13 motion directions: the highest along direction k at k, the
+    // highest inverted one (the lowest projection) at 13 + k.
+    motion: array<array<atomic<u32>, 26>, 64>,
     bound: f32,                             // the relative motion since the rebuild, at most, m
     rebuilds: u32,
     checks: u32,

@@ -227,8 +227,9 @@ fn limit_velocity(v: vec3<f32>) -> vec3<f32> {
     return v;
 }
 
-// The key of f whose unsigned order is the order of the numbers (order_key): the box of the
-// substep's displacements is kept with atomicMax on keys, and on inverted keys for its minimum.
+// The key of f whose unsigned order is the order of the numbers (order_key): the extents of
+// the substep's displacements are kept with atomicMax on keys, and on inverted keys for the
+// lowest projections.
 fn order_key(f: f32) -> u32 {
     let bits = bitcast<u32>(f);
     return select(bits | 0x80000000u, ~bits, (bits & 0x80000000u) != 0u);
@@ -239,41 +240,47 @@ fn from_order_key(key: u32) -> f32 {
     return bitcast<f32>(select(~key, key & 0x7fffffffu, (key & 0x80000000u) != 0u));
 }
 
-// The copies of the box of displacements in self_control that the workgroups of a kernel
-// spread their atomics over (cloth_gpu::layout::MOTION_COPIES).
+// The copies of the extents of the displacements in self_control that the workgroups of a
+// kernel spread their atomics over (cloth_gpu::layout::MOTION_COPIES).
 const MOTION_COPIES: u32 = 64u;
+// The directions the extents are measured along, params.motion_directions
+// (cloth_gpu::layout::MOTION_DIRECTIONS).
+const MOTION_DIRECTIONS: u32 = 13u;
 
-// The workgroup's box of displacements, as keys: x, y, z highest, then x, y, z lowest (inverted).
-var<workgroup> motion_keys: array<atomic<u32>, 6>;
+// The workgroup's extents of displacements, as keys: the highest projection on each of the
+// MOTION_DIRECTIONS, then the highest inverted ones (the lowest projections).
+var<workgroup> motion_keys: array<atomic<u32>, 26>;
 
-// Before a kernel that records the motion (uniform control flow): the workgroup's box is empty.
+// Before a kernel that records the motion (uniform control flow): the workgroup's extents are
+// empty.
 fn clear_motion(local: u32) {
-    if (local < 6u) {
+    if (local < 2u * MOTION_DIRECTIONS) {
         atomicStore(&motion_keys[local], 0u);
     }
     workgroupBarrier();
 }
 
 // Adds a vertex's displacement over the substep (moved.xyz, m; moved.w 0 where the invocation
-// has no vertex) to the workgroup's box, and the box to one of self_control's copies, chosen by
-// the workgroup's index `group` (uniform control flow).
+// has no vertex) to the workgroup's extents, and those to one of self_control's copies, chosen
+// by the workgroup's index `group` (uniform control flow).
 fn record_motion(moved: vec4<f32>, local: u32, group: u32) {
     // (Each atomic maximum is skipped where it would change nothing: most invocations of a
     // cloth that moves as a whole.)
     if (moved.w != 0.0) {
-        for (var k = 0u; k < 6u; k++) {
-            let component = order_key(moved[k % 3u]);
-            let key = select(component, ~component, k >= 3u);
+        for (var k = 0u; k < MOTION_DIRECTIONS; k++) {
+            let key = order_key(dot(moved.xyz, params.motion_directions[k].xyz));
             if (key > atomicLoad(&motion_keys[k])) {
                 atomicMax(&motion_keys[k], key);
+            }
+            if (~key > atomicLoad(&motion_keys[MOTION_DIRECTIONS + k])) {
+                atomicMax(&motion_keys[MOTION_DIRECTIONS + k], ~key);
             }
         }
     }
     workgroupBarrier();
-    if (local < 6u) {
+    if (local < 2u * MOTION_DIRECTIONS) {
         let key = atomicLoad(&motion_keys[local]);
-        // High keys at 0 to 2 of a copy, low ones at 4 to 6.
-        let slot = &self_control.motion[group % MOTION_COPIES][local + local / 3u];
+        let slot = &self_control.motion[group % MOTION_COPIES][local];
         if (key > atomicLoad(slot)) {
             atomicMax(slot, key);
         }

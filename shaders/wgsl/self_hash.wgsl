@@ -1,7 +1,7 @@
 // Self-collision's check, and the rebuild of its spatial hash and candidate lists
 // (cloth_core::self_collision; cloth_gpu::layout::SelfHashTable lays the buffers out):
-//   2 check:      one workgroup adds the box of the displacements since the last check to the
-//                 bound on the relative motion since the rebuild, and sizes the two passes below:
+//   2 check:      one workgroup adds the relative motion the extents of the displacements since
+//                 the last check allow to the bound on the relative motion since the rebuild, and sizes the two passes below:
 //                 fully when the bound plus the lookahead reaches the margin (a rebuild, which
 //                 flips the table of heads the rebuild fills), else zero;
 //   3 forced:     the same, always rebuilding (the first substep, a written state);
@@ -37,8 +37,8 @@ fn link_words(at4: u32) -> vec4<u32> {
     return self_links_read[at4];
 }
 
-// The reduction of the copies of the box of displacements.
-var<workgroup> box_keys: array<atomic<u32>, 6>;
+// The reduction of the copies of the extents of the displacements.
+var<workgroup> extent_keys: array<atomic<u32>, 26>;
 // The rebuilds so far, read once a workgroup (the insert and candidates passes).
 var<workgroup> rebuilds_so_far: u32;
 // Vertices the candidates pass lists a workgroup, and invocations a vertex
@@ -50,17 +50,17 @@ var<workgroup> found: array<array<u32, LIST_CAPACITY>, LISTING_VERTICES>;
 var<workgroup> found_count: array<atomic<u32>, LISTING_VERTICES>;
 
 // Passes 2 and 3, one workgroup (cloth_core::self_collision::{MotionBound, rebuild_due}): the
-// first MOTION_COPIES invocations gather the copies of the box (and clear them), the first
+// first MOTION_COPIES invocations gather the copies of the extents (and clear them), the first
 // invocation decides.
 fn check(local: u32) {
-    if (local < 6u) {
-        atomicStore(&box_keys[local], 0u);
+    if (local < 2u * MOTION_DIRECTIONS) {
+        atomicStore(&extent_keys[local], 0u);
     }
     workgroupBarrier();
     if (local < MOTION_COPIES) {
-        for (var k = 0u; k < 6u; k++) {
-            let slot = &self_control.motion[local][k + k / 3u];
-            atomicMax(&box_keys[k], atomicLoad(slot));
+        for (var k = 0u; k < 2u * MOTION_DIRECTIONS; k++) {
+            let slot = &self_control.motion[local][k];
+            atomicMax(&extent_keys[k], atomicLoad(slot));
             atomicStore(slot, 0u);
         }
     }
@@ -69,12 +69,22 @@ fn check(local: u32) {
         return;
     }
     var bound = self_control.bound;
-    if (atomicLoad(&box_keys[0]) != 0u) {
-        var extent = vec3<f32>(0.0);
-        for (var k = 0u; k < 3u; k++) {
-            extent[k] = from_order_key(atomicLoad(&box_keys[k])) - from_order_key(~atomicLoad(&box_keys[k + 3u]));
+    if (atomicLoad(&extent_keys[0]) != 0u) {
+        // relative_motion_bound: the box's diagonal, or the widest extent times its factor
+        // (whichever is less; a diagonal that is not a number, from a displacement that is not,
+        // stays).
+        var box = vec3<f32>(0.0);
+        var polytope = 0.0;
+        for (var k = 0u; k < MOTION_DIRECTIONS; k++) {
+            let high = from_order_key(atomicLoad(&extent_keys[k]));
+            let extent = high - from_order_key(~atomicLoad(&extent_keys[MOTION_DIRECTIONS + k]));
+            if (k < 3u) {
+                box[k] = extent;
+            }
+            polytope = max(polytope, extent * params.motion_directions[k].w);
         }
-        bound += params.self_lists.z * sqrt(dot(extent, extent));
+        let diagonal = sqrt(dot(box, box));
+        bound += params.self_lists.z * select(diagonal, polytope, polytope < diagonal);
     }
     // (Written so that a bound that is not a number rebuilds.)
     let due = (HASH_PASS == 3u) | !(bound + params.self_lists.y <= params.self_lists.x);

@@ -276,14 +276,15 @@ fn every_constant_the_plan_sets_is_declared_by_its_module() {
 }
 
 /// The WGSL modules that evaluate or build self-collision declare its constants as the host
-/// sizes and lays out their buffers: the lists' capacity, the near partners' reach and the copies
-/// of the box of displacements.
+/// sizes and lays out their buffers: the lists' capacity, the near partners' reach, the copies
+/// of the extents of the displacements and the directions they are measured along.
 #[test]
 fn self_collision_constants_are_the_hosts() {
     let expected = [
         ("LIST_CAPACITY", cloth_gpu::layout::LIST_CAPACITY as i64),
         ("NEAR_REACH", cloth_core::self_collision::NEAR_REACH as i64),
         ("MOTION_COPIES", cloth_gpu::layout::MOTION_COPIES as i64),
+        ("MOTION_DIRECTIONS", cloth_gpu::layout::MOTION_DIRECTIONS as i64),
     ];
     let mut checked = 0;
     for (file, source) in wgsl_modules().into_iter().filter(|(f, _)| !f.starts_with("render") && !f.contains("tiled")) {
@@ -301,7 +302,7 @@ fn self_collision_constants_are_the_hosts() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 15, "five modules (step, XPBD, the hash, VBD, backward Euler), three constants");
+    assert_eq!(checked, 20, "five modules (step, XPBD, the hash, VBD, backward Euler), four constants");
 }
 
 /// The implicit integrators' constants are the host's, in both shading languages: VBD's friction

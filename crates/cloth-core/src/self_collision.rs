@@ -53,10 +53,14 @@
 //! * a pair that is not a candidate was at least `r + W` apart at the rebuild, so it stays at
 //!   least `r` apart as long as no two vertices have moved by more than `W` relative to each
 //!   other since: `|x_i − x_j| ≥ |X⁰_i − X⁰_j| − |Δ_i − Δ_j|` with `Δ = x − X⁰`;
-//! * each substep bounds that relative motion without a read-back: its kernel takes the box
-//!   (per axis, minimum and maximum over the cloth) of every vertex's displacement `δ` over the
-//!   substep, and `|δ_i − δ_j|` is at most the box's diagonal `e`. Summed over the substeps since
-//!   the rebuild, `B = Σ e` bounds `|Δ_i − Δ_j|` for every pair ([`MotionBound`]);
+//! * each substep bounds that relative motion without a read-back: its kernel takes the extent
+//!   `w_k` (maximum less minimum over the cloth) of every vertex's displacement `δ` over the
+//!   substep along each of the 13 [`MOTION_DIRECTIONS`] (the axes, the face and the body
+//!   diagonals of a cube: a 26-sided bounding polytope), and `|δ_i − δ_j|` is at most
+//!   `e = min(√(w_x² + w_y² + w_z²), sec θ · max_k w_k)`: the box's diagonal, or, since every
+//!   direction is within `θ` ([`MOTION_COVERING_SECANT`]) of one of the 13 or its opposite, the
+//!   widest extent over `cos θ`. Summed over the substeps since the rebuild, `B = Σ e` bounds
+//!   `|Δ_i − Δ_j|` for every pair ([`MotionBound`]);
 //! * every [`SelfCollisionQuantities::check_interval`] substeps `C`, before the substep, one
 //!   invocation compares `B` plus the most the cloth can still move before the next check,
 //!   `L = 2 s_max Δt (C − 1 + σ)`, with `W`, and orders a rebuild when they meet
@@ -300,6 +304,54 @@ pub struct CandidateListStats {
     pub overflowed_lists: u64,
 }
 
+/// The directions along which the kernels measure the extent of a substep's displacements: the
+/// three axes, the six face diagonals and the four body diagonals of a cube (not normalised).
+/// Every unit vector is within [`MOTION_COVERING_SECANT`]'s angle of one of them or its opposite.
+pub const MOTION_DIRECTIONS: [[i8; 3]; 13] = [
+    [1, 0, 0],
+    [0, 1, 0],
+    [0, 0, 1],
+    [1, 1, 0],
+    [1, -1, 0],
+    [1, 0, 1],
+    [1, 0, -1],
+    [0, 1, 1],
+    [0, 1, -1],
+    [1, 1, 1],
+    [1, 1, -1],
+    [1, -1, 1],
+    [-1, 1, 1],
+];
+
+/// `sec θ`, with `θ` the largest angle between a unit vector and the nearest of
+/// ±[`MOTION_DIRECTIONS`]: the vector farthest from them, in the triangle of `(1, 0, 0)`,
+/// `(1, 1, 0)/√2` and `(1, 1, 1)/√3`, is equally far from the three,
+/// `(1, √2 − 1, √3 − √2)` normalised, at `cos θ = 1/√(9 − 2√2 − 2√6)` (θ ≈ 27.6°). Rounded up.
+pub const MOTION_COVERING_SECANT: f64 = 1.128_09;
+
+/// The factor that turns the extent of the displacements along each of [`MOTION_DIRECTIONS`]
+/// (the integer direction's own units) into a bound on `|δ_i − δ_j|`: `sec θ / |u_k|`.
+pub fn motion_extent_factors() -> [f64; 13] {
+    MOTION_DIRECTIONS.map(|u| {
+        let length = u.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>().sqrt();
+        MOTION_COVERING_SECANT / length
+    })
+}
+
+/// A displacement's projections on [`MOTION_DIRECTIONS`], m (not normalised: `u_k · δ`).
+pub fn motion_projections(d: [f64; 3]) -> [f64; 13] {
+    MOTION_DIRECTIONS.map(|u| f64::from(u[0]) * d[0] + f64::from(u[1]) * d[1] + f64::from(u[2]) * d[2])
+}
+
+/// The most two vertices can have moved relative to each other in a substep whose displacements'
+/// projections on [`MOTION_DIRECTIONS`] span `extents` (maximum less minimum, m):
+/// `e = min(√(w_x² + w_y² + w_z²), max_k sec θ w_k / |u_k|)` (the module documentation).
+pub fn relative_motion_bound(extents: [f64; 13]) -> f64 {
+    let diagonal = (extents[0] * extents[0] + extents[1] * extents[1] + extents[2] * extents[2]).sqrt();
+    let polytope = (extents.iter().zip(motion_extent_factors())).map(|(w, f)| w * f).fold(0.0, f64::max);
+    diagonal.min(polytope)
+}
+
 /// The bound `B` on how far any two vertices have moved relative to each other since the
 /// candidate lists were built (see the module documentation), as the GPU keeps it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -309,11 +361,10 @@ pub struct MotionBound {
 }
 
 impl MotionBound {
-    /// Adds `substeps` substeps whose displacements `δ` all lie in the box `low..=high` (per
-    /// axis, m): each adds at most the box's diagonal to `|Δ_i − Δ_j|`.
-    pub fn add(&mut self, low: [f64; 3], high: [f64; 3], substeps: u32) {
-        let e = [0, 1, 2].map(|k| high[k] - low[k]);
-        self.bound += substeps as f64 * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+    /// Adds `substeps` substeps whose displacements' projections on [`MOTION_DIRECTIONS`] span
+    /// `extents` (m): each adds at most [`relative_motion_bound`] to `|Δ_i − Δ_j|`.
+    pub fn add(&mut self, extents: [f64; 13], substeps: u32) {
+        self.bound += substeps as f64 * relative_motion_bound(extents);
     }
 }
 
@@ -724,13 +775,70 @@ mod tests {
     }
 
     #[test]
-    fn the_motion_bound_adds_each_box_diagonal_and_a_rebuild_is_due_at_the_margin() {
+    fn the_motion_bound_adds_each_substeps_bound_and_a_rebuild_is_due_at_the_margin() {
+        let extents = |displacements: &[[f64; 3]]| {
+            let projections: Vec<[f64; 13]> = displacements.iter().map(|&d| motion_projections(d)).collect();
+            std::array::from_fn(|k| {
+                let along = projections.iter().map(|p| p[k]);
+                along.clone().fold(f64::MIN, f64::max) - along.fold(f64::MAX, f64::min)
+            })
+        };
+        // Displacements along an axis: the box's diagonal, exactly.
         let mut b = MotionBound::default();
-        b.add([0.0, -1e-3, 0.0], [3e-3, 3e-3, 0.0], 2);
+        b.add(extents(&[[0.0, -1e-3, 0.0], [0.0, 4e-3, 0.0]]), 2);
+        assert!((b.bound - 1e-2).abs() < 1e-15, "2 × 5 mm: {}", b.bound);
+        // Eight displacements at the corners of a cube of side 2 mm: the box's diagonal is the
+        // cube's, 2√3 mm; the widest extent (along a body diagonal) gives sec θ · 2√3 mm, so
+        // the diagonal holds.
+        let corners: Vec<[f64; 3]> =
+            (0..8).map(|c| [0, 1, 2].map(|k| if c >> k & 1 == 1 { 1e-3 } else { -1e-3 })).collect();
+        assert!((relative_motion_bound(extents(&corners)) - 2e-3 * 3f64.sqrt()).abs() < 1e-15);
+        // Displacements spread in a disc of radius 1 mm in the xz plane: the box's diagonal is
+        // 2√2 mm, the polytope's bound at most sec θ · 2 mm, much nearer the diameter, 2 mm.
+        let disc: Vec<[f64; 3]> =
+            (0..360).map(|a| f64::from(a).to_radians()).map(|a| [1e-3 * a.cos(), 0.0, 1e-3 * a.sin()]).collect();
+        let e = relative_motion_bound(extents(&disc));
+        assert!((2e-3 * (1.0 - 1e-12)..=MOTION_COVERING_SECANT * 2e-3 * (1.0 + 1e-12)).contains(&e), "{e}");
+        assert!(e < 0.8 * 2e-3 * 2f64.sqrt(), "{e}: well under the box's diagonal");
+        let mut b = MotionBound::default();
+        b.add(extents(&[[0.0, -1e-3, 0.0], [3e-3, 3e-3, 0.0]]), 2);
         assert!((b.bound - 1e-2).abs() < 1e-15, "2 × |(3, 4, 0)| mm: {}", b.bound);
         assert!(!rebuild_due(b.bound, 0.005, 0.016));
         assert!(rebuild_due(b.bound, 0.006, 0.016));
         assert!(rebuild_due(f64::NAN, 0.0, 1.0), "a state that is not a number rebuilds");
+    }
+
+    #[test]
+    fn every_direction_is_within_the_covering_angle_and_the_bound_holds_every_pair() {
+        let mut random = random_numbers(17);
+        let factors = motion_extent_factors();
+        let mut nearest_worst: f64 = 1.0;
+        for _ in 0..100_000 {
+            let d = [random(), random(), random()];
+            let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            // |u_k · d| / |u_k| / |d|: the cosine to the nearest direction or its opposite.
+            let nearest = (motion_projections(d).iter().zip(factors))
+                .map(|(p, f)| p.abs() * f / MOTION_COVERING_SECANT / length)
+                .fold(0.0, f64::max);
+            nearest_worst = nearest_worst.min(nearest);
+        }
+        assert!(nearest_worst >= 1.0 / MOTION_COVERING_SECANT, "{nearest_worst}");
+        assert!(nearest_worst < 1.0 / MOTION_COVERING_SECANT + 2e-3, "the angle is not far from the worst");
+        for _ in 0..200 {
+            let set: Vec<[f64; 3]> = (0..12).map(|_| [random(), 0.3 * random(), random()]).collect();
+            let projections: Vec<[f64; 13]> = set.iter().map(|&d| motion_projections(d)).collect();
+            let extents = std::array::from_fn(|k| {
+                let along = projections.iter().map(|p| p[k]);
+                along.clone().fold(f64::MIN, f64::max) - along.fold(f64::MAX, f64::min)
+            });
+            let e = relative_motion_bound(extents);
+            for a in &set {
+                for b in &set {
+                    let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+                    assert!(d <= e * (1.0 + 1e-12), "{d} > {e}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -56,7 +56,7 @@ macro_rules! gpu_struct {
 }
 
 gpu_struct! {
-    /// Simulation parameters, one uniform buffer (448 bytes). Every field can change between
+    /// Simulation parameters, one uniform buffer (656 bytes). Every field can change between
     /// frames without rebuilding a pipeline.
     GpuSimParams as "SimParams" {
         /// Gravitational acceleration, m/s² (xyz; w unused).
@@ -102,6 +102,11 @@ gpu_struct! {
         /// The hash in its buffer ([`SelfHashTable`]): buckets `T`, the index of the first
         /// record; unused, unused.
         self_table: [u32; 4],
+        /// Self-collision's motion bound: each of `cloth_core::self_collision::MOTION_DIRECTIONS`
+        /// (xyz) and the factor that turns the displacements' extent along it into a bound on
+        /// two vertices' relative displacement, `sec θ / |u|` (w)
+        /// (`cloth_core::self_collision::relative_motion_bound`).
+        motion_directions: [[f32; 4]; MOTION_DIRECTIONS],
         /// Self-collision's checks: the margin less its rounding share, `(1 − 2⁻¹⁰) W`, m; the
         /// lookahead `L`, m; the substeps between two checks `C` (`cloth_core::self_collision`);
         /// unused.
@@ -179,24 +184,30 @@ pub const LISTING_IN_LANES_BELOW: u32 = 1 << 18;
 /// not read its size from a buffer it binds for writing).
 pub const REBUILD_PASSES: usize = 2;
 
-/// The copies of the box of displacements in [`GpuSelfControl::motion`]: each workgroup of a
+/// The copies of the extents of the displacements in [`GpuSelfControl::motion`]: each workgroup of a
 /// substep's kernel raises the keys of copy `workgroup mod MOTION_COPIES`, so that the atomics of
 /// thousands of workgroups do not all meet on six words.
 pub const MOTION_COPIES: usize = 64;
 
+/// The directions along which the substeps measure the extent of their displacements
+/// (`cloth_core::self_collision::MOTION_DIRECTIONS`); each copy in [`GpuSelfControl::motion`]
+/// keeps a highest and a lowest projection on each.
+pub const MOTION_DIRECTIONS: usize = cloth_core::self_collision::MOTION_DIRECTIONS.len();
+
 gpu_struct! {
-    /// What self-collision's check and the substeps share on the GPU (2096 bytes, one storage
-    /// buffer): the box of the displacements since the last check, the bound on the cloth's
+    /// What self-collision's check and the substeps share on the GPU (6704 bytes, one storage
+    /// buffer): the extents of the displacements since the last check, the bound on the cloth's
     /// relative motion since the last rebuild, and the counters a test or a report reads.
     GpuSelfControl as "SelfControl" {
         /// The rebuild passes' workgroups `(x, y, z, unused)` for a rebuild, in
         /// [`REBUILD_PASSES`] order (the plan's): the check copies them to the dispatch buffer
         /// when a rebuild is due, and zeros otherwise.
         full: [[u32; 4]; REBUILD_PASSES],
-        /// [`MOTION_COPIES`] copies of the box of the displacements since the last check, as
-        /// [`cloth_core::self_collision::order_key`]s: the largest key of x, y, z at 0 to 2, the
-        /// largest inverted key (the smallest displacement) at 4 to 6; 0: none recorded.
-        motion: [[u32; 8]; MOTION_COPIES],
+        /// [`MOTION_COPIES`] copies of the extents of the displacements since the last check,
+        /// as [`cloth_core::self_collision::order_key`]s of their projections on the
+        /// [`MOTION_DIRECTIONS`]: the largest key along direction `k` at `k`, the largest
+        /// inverted key (the smallest projection) at `MOTION_DIRECTIONS + k`; 0: none recorded.
+        motion: [[u32; 2 * MOTION_DIRECTIONS]; MOTION_COPIES],
         /// The bound `B` on the relative motion since the last rebuild, m.
         bound: f32,
         /// Rebuilds so far (its parity says which table of heads the last one filled).
@@ -564,6 +575,13 @@ impl GpuSimParams {
                 s.check_interval as f32,
                 0.0,
             ],
+            motion_directions: {
+                let factors = cloth_core::self_collision::motion_extent_factors();
+                std::array::from_fn(|k| {
+                    let [x, y, z] = cloth_core::self_collision::MOTION_DIRECTIONS[k].map(f32::from);
+                    [x, y, z, factors[k] as f32]
+                })
+            },
         }
     }
 }
