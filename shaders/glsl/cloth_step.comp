@@ -407,7 +407,8 @@ void main() {
     }
     vec4 moved = advance_vertex();
     if (EFFECT_SELF_COLLISION) {
-        // The box of the substep's displacements, which the next check adds to its bound.
+        // The extents of the substep's displacements along the motion directions, which the next
+        // check turns into its bound.
         record_motion(moved, gl_LocalInvocationIndex, gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x);
     }
 }

@@ -754,7 +754,8 @@ void main() {
         }
         vec4 moved = vertex ? finish(i) : vec4(0.0);
         if (EFFECT_SELF_COLLISION) {
-            // The box of the substep's displacements, which the next check adds to its bound.
+            // The extents of the substep's displacements along the motion directions, which the
+            // next check turns into its bound.
             record_motion(moved, local, group);
         }
     }

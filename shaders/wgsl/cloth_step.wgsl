@@ -180,7 +180,8 @@ fn substep(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     }
     let moved = advance_vertex(id, groups, group, local);
     if (EFFECT_SELF_COLLISION) {
-        // The box of the substep's displacements, which the next check adds to its bound.
+        // The extents of the substep's displacements along the motion directions, which the next
+        // check turns into its bound.
         record_motion(moved, local, group.y * groups.x + group.x);
     }
 }

@@ -822,7 +822,8 @@ fn implicit(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroup
                 moved = finish(i);
             }
             if (EFFECT_SELF_COLLISION) {
-                // The box of the substep's displacements, which the next check adds to its bound.
+                // The extents of the substep's displacements along the motion directions, which
+                // the next check turns into its bound.
                 record_motion(moved, local, group);
             }
         }

@@ -715,7 +715,8 @@ fn vbd(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) gr
     }
     let moved = run_pass(id, groups);
     if (EFFECT_SELF_COLLISION & (VBD_PASS == 2u)) {
-        // The box of the substep's displacements, which the next check adds to its bound.
+        // The extents of the substep's displacements along the motion directions, which the next
+        // check turns into its bound.
         record_motion(moved, local, group.y * groups.x + group.x);
     }
 }
