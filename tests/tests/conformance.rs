@@ -594,11 +594,10 @@ fn self_collision_scene(nx: u32, ny: u32) -> Scene {
 
 /// Each of the case's integrators from `start` for `frames` frames on `backend`, its candidates
 /// listed the case's way, against the f32 reference, within the f32 tolerance (XPBD: its
-/// per-substep tolerance, as elsewhere); with `reordered`
-/// (a backend that may sum the same terms in another order), within the f32 reference's own
-/// distance from the f64 one where that is larger: rounding the sums differently cannot be
-/// expected to end closer to the f32 reference than its own rounding leaves it from the exact
-/// result. The effect must move the reference by more than 1 mm. Returns the backend's
+/// per-substep tolerance, as elsewhere); with `reordered` (a backend that may sum the same terms
+/// in another order), within the f32 reference's own distance from the f64 one where that is
+/// larger: rounding the sums differently cannot be expected to end closer to the f32 reference
+/// than its own rounding leaves it from the exact result. The effect must move the reference by more than 1 mm. Returns the backend's
 /// diagnostics of each run.
 fn follows_the_reference_from(
     backend: &Backend,
