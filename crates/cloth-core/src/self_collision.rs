@@ -94,6 +94,8 @@ pub const CONTACTS_PER_VERTEX: f64 = 8.0;
 pub const NEAR_REACH: usize = 2;
 
 /// The most candidates the GPU keeps for one vertex; a vertex with more reads the hash instead.
+/// Lists of 64 remove the overflows of the self-collision bench at 256² but make its frame no
+/// faster there and slower at 1024² (docs/performance.md, "What self-collision costs").
 pub const LIST_CAPACITY: u32 = 32;
 
 /// The longest interval between two checks of the candidate lists, substeps.
