@@ -166,8 +166,7 @@ fn test() -> Result<()> {
     // one thread a core and wakes it. The suites' grids are small and their dispatches many (an
     // implicit substep records hundreds), so the wake-ups cost more than the pool saves, and the
     // second test thread keeps the other core busy: lavapipe runs each dispatch on the calling
-    // thread instead (a fifth to a third off both suites' time on 2 cores). Other Vulkan drivers
-    // ignore the variable.
+    // thread instead. Other Vulkan drivers ignore the variable.
     sh(cargo().args(["test", "--workspace"]).env("RUSTDOCFLAGS", "-D warnings").env("LP_NUM_THREADS", "0"))?;
     sh(cargo().args(["doc", "--no-deps", "--package", "cloth-core"]).env("RUSTDOCFLAGS", "-D warnings"))
 }
