@@ -34,8 +34,14 @@
 set -uo pipefail
 OUT=${OUT:-gpu-check-out}
 CLOTH=${CLOTH:-target/release/cloth}
-mkdir -p "$OUT"
 checks=${*:-conformance bench}
+for check in $checks; do
+  case $check in
+    conformance | stability | bench | effects | tuning | compare | peer | study) ;;
+    *) echo "gpu-check: unknown check '$check' (the checks: conformance stability bench effects tuning compare peer study)" >&2; exit 2 ;;
+  esac
+done
+mkdir -p "$OUT"
 
 # A test binary: the one named in the variable, else the one cargo builds.
 test_binary() {
@@ -116,11 +122,12 @@ fi
 # Runs the bench with the binary $1 and the flags $3.., labelling its CSV rows with $2.
 labelled_bench() {
   local bin=$1 label=$2 csv=$3; shift 3
-  "$bin" bench --backends wgpu,vulkano "$@" --csv /tmp/gpu-check-rows.csv > /tmp/gpu-check-rows.txt 2>&1
-  grep -E "refused|error" /tmp/gpu-check-rows.txt | sort -u | head -4 | sed "s|^|$label: |"
-  grep -E "^(wgpu|vulkano) " /tmp/gpu-check-rows.txt | sed "s|^|$label |"
-  [ -s "$csv" ] || sed -n 1p /tmp/gpu-check-rows.csv | sed 's/^/label,/' > "$csv"
-  sed 1d /tmp/gpu-check-rows.csv | sed "s|^|\"$label\",|" >> "$csv"
+  local rows="$OUT/rows.csv" text="$OUT/rows.txt"
+  "$bin" bench --backends wgpu,vulkano "$@" --csv "$rows" > "$text" 2>&1
+  grep -E "refused|error" "$text" | sort -u | head -4 | sed "s|^|$label: |"
+  grep -E "^(wgpu|vulkano) " "$text" | sed "s|^|$label |"
+  [ -s "$csv" ] || sed -n 1p "$rows" | sed 's/^/label,/' > "$csv"
+  sed 1d "$rows" | sed "s|^|\"$label\",|" >> "$csv"
 }
 
 if [[ " $checks " == *" tuning "* ]]; then

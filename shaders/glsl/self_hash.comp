@@ -129,7 +129,8 @@ void insert(uint i, uint rebuilds) {
 }
 
 // Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex
-// with more than LIST_CAPACITY keeps the count only, and counts in self_control.overflows.
+// with more than LIST_CAPACITY keeps its first LIST_CAPACITY as found, which nothing reads (its
+// count says it overflowed), and counts in self_control.overflows.
 void list_candidates(uint i, uint rebuilds) {
     uint list[LIST_CAPACITY];
     uint count = 0u;

@@ -1,12 +1,12 @@
-// The sum over a vertex's self-collision partners, written once for the force kernel
-// (cloth_step.comp: the repulsions) and XPBD (xpbd.comp: the contact corrections), each of which
-// defines the term of one pair, after including this file:
+// The sum over a vertex's self-collision partners, written once for the force kernels
+// (cloth_step.comp, implicit.comp, vbd.comp: the repulsions) and XPBD (xpbd.comp: the contact
+// corrections), each of which defines the term of one pair, after including this file:
 //   vec4 pair_term(uint j, PairContext c)
 // The GLSL twin of shaders/wgsl/self_partners.wgsl. Included after self_collision.glsl.
 
 // What a pair's term needs besides its partner j: vertex i's position x, m, and a vector and a
-// number of the kernel's (cloth_step: i's velocity, m/s, and the friction's step, s; xpbd: i's
-// position at the substep's start, m, and its inverse mass, 1/kg).
+// number of the kernel's (cloth_step, implicit, vbd: i's velocity, m/s, and the friction's step,
+// s; xpbd: i's position at the substep's start, m, and its inverse mass, 1/kg).
 struct PairContext {
     vec3 x;
     vec3 a;

@@ -2,7 +2,7 @@
 // the thickness r repel. Near partners (within NEAR_REACH grid steps) come from the grid, far
 // partners from each vertex's candidate list, which self_hash.wgsl rebuilds when the check finds
 // it may be stale (or, for a vertex with more than LIST_CAPACITY candidates, from the hash of
-// that rebuild). Prepended, after common.wgsl, to the kernels that evaluate or build it, each of
+// that rebuild). Prepended, after layout.wgsl, to the kernels that evaluate or build it, each of
 // which declares self_words and self_control and defines link_words(at4), which reads the hash's
 // words 4 at4 to 4 at4 + 3 in one load (cloth_gpu::layout::SelfHashTable, GpuSelfControl).
 // Parameters in params.self_contact, params.self_hash, params.self_table and params.self_lists

@@ -120,7 +120,8 @@ fn insert(i: u32, rebuilds: u32) {
 }
 
 // Pass 1: vertex i's candidates in increasing index (an insertion sort as they come); a vertex
-// with more than LIST_CAPACITY keeps the count only, and counts in self_control.overflows.
+// with more than LIST_CAPACITY keeps its first LIST_CAPACITY as found, which nothing reads (its
+// count says it overflowed), and counts in self_control.overflows.
 fn list_candidates(i: u32, rebuilds: u32) {
     var list: array<u32, LIST_CAPACITY>;
     var count = 0u;

@@ -1,12 +1,12 @@
-// The sum over a vertex's self-collision partners, written once for the force kernel
-// (cloth_step.wgsl: the repulsions) and XPBD (xpbd.wgsl: the contact corrections), each of which
-// defines the term of one pair:
+// The sum over a vertex's self-collision partners, written once for the force kernels
+// (cloth_step.wgsl, implicit.wgsl, vbd.wgsl: the repulsions) and XPBD (xpbd.wgsl: the contact
+// corrections), each of which defines the term of one pair:
 //   fn pair_term(j: u32, c: PairContext) -> vec4<f32>
 // Prepended after self_collision.wgsl.
 
 // What a pair's term needs besides its partner j: vertex i's position x, m, and a vector and a
-// number of the kernel's (cloth_step: i's velocity, m/s, and the friction's step, s; xpbd: i's
-// position at the substep's start, m, and its inverse mass, 1/kg).
+// number of the kernel's (cloth_step, implicit, vbd: i's velocity, m/s, and the friction's step,
+// s; xpbd: i's position at the substep's start, m, and its inverse mass, 1/kg).
 struct PairContext {
     x: vec3<f32>,
     a: vec3<f32>,

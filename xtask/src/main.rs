@@ -147,6 +147,15 @@ fn run_main_job(extra: &[String]) -> Result<()> {
         }
         return sh(&mut cmd);
     }
+    if !extra.is_empty() {
+        bail!(
+            "no display (DISPLAY and WAYLAND_DISPLAY are unset), so the inspector cannot open a window for `{}`; \
+             run it under a virtual display (`xvfb-run -a cargo xtask run {}`), or use the headless \
+             `cloth run` (`cargo run --release -p cloth-cli -- run --help`)",
+            extra.join(" "),
+            extra.join(" ")
+        );
+    }
     eprintln!(
         "xtask: no display (DISPLAY and WAYLAND_DISPLAY are unset), so the inspector cannot open a window;\n\
          xtask: running the headless `cloth run` instead and writing the picture to out/drape.png"

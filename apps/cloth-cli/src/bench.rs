@@ -51,12 +51,14 @@ pub struct BenchArgs {
     /// substeps unless `--substeps` is given).
     #[arg(long)]
     effects: bool,
-    /// The scene of `--effects` (default: scenes/flag.ron, which has every effect).
+    /// The scene of `--effects` (default: scenes/flag.ron, which has every effect but
+    /// self-collision).
     #[arg(long, requires = "effects")]
     scene: Option<std::path::PathBuf>,
 }
 
-/// The default scene of `--effects`: every effect at once (a copy of `scenes/flag.ron`).
+/// The default scene of `--effects`: every effect but self-collision at once (a copy of
+/// `scenes/flag.ron`).
 const FLAG_SCENE: &str = include_str!("../../../scenes/flag.ron");
 
 /// One row `cloth bench` will time, or the reason it is refused (it does not fit its

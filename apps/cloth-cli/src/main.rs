@@ -803,8 +803,8 @@ mod tests {
 
     #[test]
     fn cases_found_at_the_edges_are_refused_with_a_message() {
-        // Found by the property: a row whose vertex-substeps overflow u64 panicked; now the row
-        // is refused (and the command, with no row left, ends with an error when run).
+        // A row whose vertex-substeps overflow u64 is refused (and the command, with no row
+        // left, ends with an error when run).
         let cli = Cli::try_parse_from(["cloth", "bench", "--grids", "536870912", "--substeps", "64"]).unwrap();
         let Command::Bench(bench_args) = &cli.command else { unreachable!() };
         let plan = bench::plan(bench_args).unwrap();
@@ -813,8 +813,8 @@ mod tests {
             !refusals.is_empty() && refusals.iter().all(|p| p.contains("9.408e20 vertex-substeps")),
             "{refusals:?}"
         );
-        // Found by the property: the flag's pinned edge at 4294967295 vertices was listed (32 GB)
-        // before the grid was refused.
+        // A grid of 4294967295 vertices a row is refused by its resolution, before the flag's
+        // pinned edge (32 GB of indices) would be listed.
         let message = refusal(&["bench", "--effects", "--grids", "4294967295"]);
         assert!(message.contains("cloth.resolution: grid 4294967295x"), "{message}");
         let message = refusal(&["bench", "--effects", "--grids", "16", "--repeats", "2"]);

@@ -7,7 +7,7 @@
 //!
 //! ```text
 //! F_n = (k_s (r − d) − c_s min(v_r · u, 0)) u              repulsion, and damping of the approach
-//! F_t = −min(μ |F_n|, m |v_t| / (2 Δt)) v_t / |v_t|        friction between the layers
+//! F_t = −min(μ |F_n|, m |v_t| / (16 Δt)) v_t / |v_t|       friction between the layers
 //! ```
 //!
 //! with `v_t = v_r − (v_r · u) u` the sliding velocity; `j` feels the opposite. The friction is
@@ -380,7 +380,7 @@ pub fn rebuild_due(bound: f64, lookahead: f64, margin: f64) -> bool {
 }
 
 /// The key of `f` whose unsigned order is the order of the numbers (negative numbers' bits
-/// inverted, the others' sign bit set): the kernels keep the box of the displacements with
+/// inverted, the others' sign bit set): the kernels keep the extents of the displacements with
 /// `atomicMax` on keys, and on inverted keys for the minimum. Key 0 means nothing recorded.
 pub fn order_key(f: f32) -> u32 {
     let bits = f.to_bits();
@@ -493,8 +493,8 @@ pub fn hash_gaps<R: Real>(x: Vec3<R>, base: [i32; 3], h: R) -> Vec3<R> {
 /// Whether the cell at offset `d` (each −1, 0 or 1) from `x`'s comes nearer `x` than the cell
 /// side `h`, given `x`'s distances `below` from its cell's low faces: a vertex listed there is
 /// farther than `h` from `x`, and between rebuilds a pair closer than the thickness was listed
-/// nearer than `h`, so the cell can hold none of `x`'s contacts. About half of the 27 cells
-/// around a vertex are out of reach.
+/// nearer than `h`, so the cell can hold none of `x`'s contacts. The 6 cells that share a face
+/// with `x`'s are always in reach; of the 20 others about 6 are out of reach, on average.
 pub fn cell_in_reach<R: Real>(below: Vec3<R>, d: [i32; 3], h: R) -> bool {
     let gap = |below: R, d: i32| match d {
         -1 => below,

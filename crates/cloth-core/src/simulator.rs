@@ -184,6 +184,10 @@ impl Scene {
             Some("a mesh collider's file, scale or cells".into())
         } else if self.integrator != new.integrator {
             Some("the integrator".into())
+        } else if self.integrator.is_implicit() && self.solver != new.solver {
+            // A GPU plan records the implicit solver's iterations as dispatches and sizes its
+            // buffers for them.
+            Some("the implicit solver's settings".into())
         } else if self.effects.contains(crate::Effect::SelfCollision)
             && SelfCollisionQuantities::of(self).check_interval != SelfCollisionQuantities::of(new).check_interval
         {
@@ -226,5 +230,21 @@ mod tests {
         let mut c = b.clone();
         c.cloth.pin_groups[0].motion.angular_velocity = [0.0, 1.0, 0.0];
         assert_eq!(b.rebuild_reason(&c), None);
+    }
+
+    #[test]
+    fn other_solver_settings_rebuild_an_implicit_simulator_only() {
+        let mut a = Scene::default();
+        let mut b = a.clone();
+        b.solver.cg_max_iterations += 10;
+        assert_eq!(a.rebuild_reason(&b), None, "the explicit integrators do not use the solver");
+        a.integrator = crate::integrator::Integrator::BackwardEuler;
+        b.integrator = a.integrator;
+        assert_eq!(a.rebuild_reason(&b).as_deref(), Some("the implicit solver's settings"));
+        a.integrator = crate::integrator::Integrator::Vbd;
+        b.integrator = a.integrator;
+        b.solver = a.solver;
+        b.solver.vbd_iterations += 1;
+        assert_eq!(a.rebuild_reason(&b).as_deref(), Some("the implicit solver's settings"));
     }
 }

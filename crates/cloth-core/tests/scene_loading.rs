@@ -147,7 +147,7 @@ fn nan_and_infinity_in_a_file_are_reported_by_field() {
 }
 
 #[test]
-fn the_bad_inputs_of_the_issue_each_give_their_message() {
+fn each_bad_input_gives_its_message() {
     let cases = [
         ("Scene(cloth: (resolution: (1, 8)))", "cloth.resolution[0]: is 1 vertices; a cloth needs at least 2"),
         ("Scene(cloth: (resolution: (0, 0)))", "cloth.resolution[1]: is 0 vertices"),

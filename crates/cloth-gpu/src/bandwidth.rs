@@ -28,7 +28,7 @@ const COPIES: u32 = 40;
 /// enough to keep every SM of a large GPU busy.
 const COPY_WORKGROUPS: u32 = 1024;
 
-/// Measures the copy bandwidth of the device `tuning.adapter` names on backend `B`: [`COPIES`]
+/// Measures the copy bandwidth of the device `tuning.adapter` names on backend `B`: `COPIES`
 /// copies of 512 MiB (less where the device binds less), back and forth between two buffers, by
 /// the `copy` kernel of `shaders/` in one submission, timed by its timestamps (else by the wall
 /// clock from submission to completion).

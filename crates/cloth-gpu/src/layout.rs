@@ -3,7 +3,7 @@
 //! Every type is `#[repr(C)]` and `bytemuck::Pod`, laid out for WGSL and GLSL `std140`/`std430`
 //! (16-byte vectors first, uniform blocks a multiple of 16 bytes). Each shading language
 //! declares them once (`shaders/wgsl/layout.wgsl`, `shaders/glsl/layout.glsl`), and a test
-//! reflects every shader module that uses them against [`struct_layouts`], which [`gpu_struct!`]
+//! reflects every shader module that uses them against [`struct_layouts`], which `gpu_struct!`
 //! generates from the Rust definitions below: a field added here and not in a shader fails it.
 //!
 //! The buffers of a simulation are listed by `plan.rs`; velocities carry the time of their state
@@ -186,7 +186,7 @@ pub const REBUILD_PASSES: usize = 2;
 
 /// The copies of the extents of the displacements in [`GpuSelfControl::motion`]: each workgroup of a
 /// substep's kernel raises the keys of copy `workgroup mod MOTION_COPIES`, so that the atomics of
-/// thousands of workgroups do not all meet on six words.
+/// thousands of workgroups do not all meet on 26 words.
 pub const MOTION_COPIES: usize = 64;
 
 /// The directions along which the substeps measure the extent of their displacements

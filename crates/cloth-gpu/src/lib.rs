@@ -13,7 +13,7 @@
 //! * [`bandwidth`]: the device's copy bandwidth, the ceiling of a memory-bound substep.
 //!
 //! A backend (`cloth-wgpu`, `cloth-vulkano`) implements [`GpuBackend`]: it turns the plan's
-//! descriptions into its API's objects and records the dispatches of [`Schedule::frame`].
+//! descriptions into its API's objects and records the dispatches of [`Schedule::frame_from`].
 
 #![warn(missing_docs)]
 

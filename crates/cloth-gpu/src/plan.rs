@@ -822,8 +822,9 @@ fn packed(
     PackedPasses { first_pipeline, middle_pipelines, last_pipelines, first, middle, last, workgroups }
 }
 
-/// XPBD (`xpbd`): predict; per iteration one dispatch per non-empty colour and one for the
-/// colliders; finish.
+/// XPBD (`xpbd`): predict; per iteration one dispatch per non-empty colour, one for the
+/// self-contacts (with `SelfCollision`) and one for the colliders (with `Contact` or
+/// `SelfCollision`, whose speed limit it applies); finish.
 fn xpbd(b: &mut Builder, model: &ClothModel, limits: &DeviceLimits) -> Schedule {
     let (scene, storage) = (b.scene, BufferUsage::Storage);
     let colors = model.spring_colors();

@@ -127,10 +127,11 @@ pub struct Schedule {
 
 impl Schedule {
     /// Appends the dispatches of `substeps` substeps starting from state `current` to `out`, and
-    /// returns the state current after them (the simulation's first substeps, for a schedule
-    /// with self-collision: see [`Schedule::frame_from`]).
+    /// returns the state current after them: the first substeps of a fresh simulation, whose
+    /// self-collision lists, if it has them, are built before the first substep (the forced
+    /// check). Later frames continue with [`Schedule::frame_from`].
     pub fn frame(&self, substeps: u64, current: usize, out: &mut Vec<Dispatch>) -> usize {
-        self.frame_from(0, false, substeps, current, out)
+        self.frame_from(0, true, substeps, current, out)
     }
 
     /// [`Schedule::frame`] for substeps `first, first + 1, …` of the simulation; `stale`:

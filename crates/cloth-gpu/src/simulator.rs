@@ -18,7 +18,7 @@ pub const TIMER_PAIRS: u32 = 256;
 pub struct Frame<'a, B: GpuBackend> {
     /// The timer's pair to write before and after the dispatches, while timing is on.
     pub timestamps: Option<u32>,
-    /// The dispatches ([`Schedule::frame`]).
+    /// The dispatches ([`Schedule::frame_from`]).
     pub dispatches: &'a [Dispatch],
     /// The pipelines, by [`crate::plan::PipelineId`].
     pub pipelines: &'a [B::Pipeline],

@@ -28,7 +28,8 @@ pub struct GpuTuning {
     /// narrower than the block gets a block of its next power of two. Default
     /// [`DEFAULT_BLOCK_WIDTH`] (with a workgroup of fewer invocations, give at most that).
     pub block_width: u32,
-    /// Whether semi-implicit Euler fuses substeps in workgroup memory. Default [`Tiling::Auto`].
+    /// Whether semi-implicit Euler fuses substeps in workgroup memory (never with
+    /// `SelfCollision`, which runs on the `vec4` state). Default [`Tiling::Auto`].
     pub tiling: Tiling,
     /// The tile of the fused kernel (cells and substeps per dispatch); `None`: the largest of
     /// [`crate::geometry::DEFAULT_TILES`] the device fits. Default `None`.
@@ -75,7 +76,8 @@ pub enum Tiling {
     /// dispatch little.
     #[default]
     Auto,
-    /// Wherever the device fits the tile, on any grid.
+    /// Wherever the device fits the tile, on any grid (semi-implicit Euler without
+    /// `SelfCollision`).
     On,
     /// Never: one dispatch per substep.
     Off,

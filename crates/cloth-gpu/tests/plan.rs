@@ -295,6 +295,10 @@ fn self_collision_checks_come_every_check_interval_with_indirect_rebuilds() {
         assert_eq!(checks.interval as u64, interval);
         let (check, forced) = (checks.check.pipeline, checks.forced.pipeline);
         let per_substep = plan.schedule.substep.len();
+        // A fresh simulation's first frame builds the lists before its first substep.
+        let mut first = Vec::new();
+        plan.schedule.frame(1, 0, &mut first);
+        assert_eq!(first[0].pipeline, forced, "{integrator:?}: a fresh simulation's first substep");
         // From substep 3 on, with the lists stale: a forced check first, then every C-th.
         let mut frame = Vec::new();
         let substeps = 3 * interval;

@@ -337,7 +337,9 @@ impl GpuBackend for VulkanoBackend {
             // SAFETY: the pipelines, descriptor sets and buffers live as long as the simulator,
             // which waits for the device before dropping them; every kernel bounds-checks its
             // invocation index (against the vertex count, a colour's constraint count or the
-            // grid), and every buffer it indexes holds that many elements (the plan sizes them).
+            // grid), every buffer it indexes holds that many elements (the plan sizes them), and
+            // the indices it reads from buffers (springs' ends, candidates, hash links) are
+            // below the vertex count (the wgpu backend's shader modules give the whole argument).
             unsafe {
                 if bound != Some(d.pipeline) {
                     rec.bind_pipeline_compute(pipeline).map_err(|e| device_error(format!("binding: {e}")))?;

@@ -157,14 +157,20 @@ impl GpuBackend for WgpuBackend {
         // SAFETY: the kernels run without wgpu's index clamping and loop bounding (1.6-2.7% of a
         // large GPU's frame), as the vulkano backend runs its SPIR-V. Every index they form is in
         // bounds given what the plan guarantees: `vertex_count = nx · ny` is the length of every
-        // state buffer, and a vertex index comes from grid coordinates checked against `nx`,
+        // per-vertex buffer, and a vertex index comes from grid coordinates checked against `nx`,
         // `ny` (or is an offset of at most two rows and columns from a vertex two or more from
-        // every edge); `sphere_count` is at most the sphere buffer's length (a change of sphere
-        // count rebuilds the simulator); XPBD's constraints have `a`, `b` below the vertex count
-        // and `kind` at most 2, and its colour ranges lie inside the constraint buffer; RK4's
-        // stages run only with the full scratch bound; the tiled kernel reads only tile cells it
-        // wrote; the copy kernel's loop stops at its buffer's length. Every loop is bounded: over
-        // the spheres, the fused substeps, the copy's elements.
+        // every edge); `collider_count` is at most the colliders' block's `MAX_COLLIDERS`
+        // (validation refuses more, and a change of count rebuilds the simulator), and a mesh's
+        // field cell is clamped into its grid; XPBD's and VBD's constraints have their ends below
+        // the vertex count, and their colour ranges lie inside their buffers; RK4's stages run
+        // only with the full scratch bound; the tiled kernel reads only tile cells it wrote;
+        // self-collision's buckets are masked to the table's power-of-two size, and every vertex
+        // index its lists and links hold is one the rebuild wrote, below the vertex count (the
+        // simulation's first substep rebuilds them); the copy kernel's loop stops at its
+        // buffer's length. Every loop is bounded: over the colliders, the colour ranges, the
+        // fused substeps, a list's at most `LIST_CAPACITY` candidates, the copy's elements; the
+        // walk of a bucket's list ends because a rebuild pushes every vertex once, on fresh
+        // heads, so no list has a cycle.
         let module = unsafe { device.create_shader_module_trusted(descriptor, wgpu::ShaderRuntimeChecks::unchecked()) };
         let entries: Vec<wgpu::BindGroupLayoutEntry> = (desc.bindings.iter().enumerate())
             .map(|(binding, b)| wgpu::BindGroupLayoutEntry {

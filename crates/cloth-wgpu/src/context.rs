@@ -79,7 +79,8 @@ fn no_adapter_reason() -> String {
 
 /// The features and limits the simulator asks of a device on `adapter`: the largest storage
 /// buffers, workgroup grids and workgroup memory it offers, every storage buffer per stage it
-/// offers (the kernels bind 9; WebGPU's default is 8), and timestamp queries where there are any.
+/// offers (the force kernel binds up to 15, more than WebGPU's default of 8; the plan refuses a
+/// device with fewer than a kernel needs), and timestamp queries where there are any.
 /// A host that opens the device itself (the inspector shares eframe's) requests these so the
 /// simulator can run on it.
 pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Limits) {

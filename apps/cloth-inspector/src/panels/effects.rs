@@ -55,7 +55,8 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
             if q.check_interval == 1 { "" } else { "s" }
         ))
         .on_hover_text(
-            "The longest interval whose worst-case motion, 2 s_max Δt a substep, takes at most half the margin",
+            "The longest interval (at most 8) whose lookahead, 2 s_max Δt (C − 1 + σ), takes at most half the margin \
+             (σ = 0 for semi-implicit Euler, 1 for the other integrators)",
         );
         problems_for(ui, ctx.problems, "self_collision");
     }
