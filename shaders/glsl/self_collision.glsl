@@ -15,6 +15,10 @@
 #define NEAR_REACH 2
 // No vertex: the end of a search.
 #define NO_VERTEX 0xffffffffu
+// The most other vertices one vertex is taken to touch at once
+// (cloth_core::self_collision::CONTACTS_PER_VERTEX): the layers' friction gives each pair a share
+// 1 / (2 CONTACTS_PER_VERTEX) of the force that stops its sliding.
+#define CONTACTS_PER_VERTEX 8u
 // The copies of the extents of the displacements in self_control that the workgroups of a
 // kernel spread their atomics over (cloth_gpu::layout::MOTION_COPIES).
 #define MOTION_COPIES 64u
@@ -174,7 +178,7 @@ bool far_candidate(FarSearch search, FarCell cell, uint j, uvec4 record) {
 
 // The force on vertex i from vertex j, N: repulsion k_s (r − d) and approach damping along
 // u = (x_i − x_j)/d, and the layers' friction, capped by Coulomb and by a share of the force that
-// stops the sliding (repulsion_force; 16 = 2 × CONTACTS_PER_VERTEX).
+// stops the sliding (repulsion_force).
 vec3 repulsion_force(vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, float mass, float dt) {
     float r = params.self_contact.x;
     vec3 delta = x_i - x_j;
@@ -191,7 +195,7 @@ vec3 repulsion_force(vec3 x_i, vec3 x_j, vec3 v_i, vec3 v_j, float mass, float d
     vec3 v_t = v_r - u * approach;
     float sliding = sqrt(dot(v_t, v_t));
     if (sliding > 0.0) {
-        float stop = mass * sliding / (16.0 * dt);
+        float stop = mass * sliding / (float(2u * CONTACTS_PER_VERTEX) * dt);
         force += v_t * (-(min(stop, params.self_contact.w * abs(normal)) / sliding));
     }
     return force;

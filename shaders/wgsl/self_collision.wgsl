@@ -14,6 +14,10 @@ const LIST_CAPACITY: u32 = 32u;
 const NEAR_REACH: i32 = 2;
 // No vertex: the end of a search.
 const NO_VERTEX: u32 = 0xffffffffu;
+// The most other vertices one vertex is taken to touch at once
+// (cloth_core::self_collision::CONTACTS_PER_VERTEX): the layers' friction gives each pair a share
+// 1 / (2 CONTACTS_PER_VERTEX) of the force that stops its sliding.
+const CONTACTS_PER_VERTEX: u32 = 8u;
 
 // The hash cell holding x: floor(x / h) per axis (cloth_core::self_collision::cell_of).
 fn hash_cell(x: vec3<f32>) -> vec3<i32> {
@@ -173,7 +177,7 @@ fn far_candidate(search: FarSearch, cell: FarCell, j: u32, record: vec4<u32>) ->
 
 // The force on vertex i from vertex j, N: repulsion k_s (r − d) and approach damping along
 // u = (x_i − x_j)/d, and the layers' friction, capped by Coulomb and by a share of the force that
-// stops the sliding (repulsion_force; 16 = 2 × CONTACTS_PER_VERTEX).
+// stops the sliding (repulsion_force).
 fn repulsion_force(x_i: vec3<f32>, x_j: vec3<f32>, v_i: vec3<f32>, v_j: vec3<f32>, mass: f32,
                    dt: f32) -> vec3<f32> {
     let r = params.self_contact.x;
@@ -191,7 +195,7 @@ fn repulsion_force(x_i: vec3<f32>, x_j: vec3<f32>, v_i: vec3<f32>, v_j: vec3<f32
     let v_t = v_r - u * approach;
     let sliding = sqrt(dot(v_t, v_t));
     if (sliding > 0.0) {
-        let stop = mass * sliding / (16.0 * dt);
+        let stop = mass * sliding / (f32(2u * CONTACTS_PER_VERTEX) * dt);
         force += v_t * (-(min(stop, params.self_contact.w * abs(normal)) / sliding));
     }
     return force;

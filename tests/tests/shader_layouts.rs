@@ -277,7 +277,8 @@ fn every_constant_the_plan_sets_is_declared_by_its_module() {
 
 /// The WGSL modules that evaluate or build self-collision declare its constants as the host
 /// sizes and lays out their buffers: the lists' capacity, the near partners' reach, the copies
-/// of the extents of the displacements and the directions they are measured along.
+/// of the extents of the displacements, the directions they are measured along, and the contacts
+/// a vertex is taken to share the layers' friction among.
 #[test]
 fn self_collision_constants_are_the_hosts() {
     let expected = [
@@ -285,6 +286,7 @@ fn self_collision_constants_are_the_hosts() {
         ("NEAR_REACH", cloth_core::self_collision::NEAR_REACH as i64),
         ("MOTION_COPIES", cloth_gpu::layout::MOTION_COPIES as i64),
         ("MOTION_DIRECTIONS", cloth_gpu::layout::MOTION_DIRECTIONS as i64),
+        ("CONTACTS_PER_VERTEX", cloth_core::self_collision::CONTACTS_PER_VERTEX as i64),
     ];
     let mut checked = 0;
     for (file, source) in wgsl_modules().into_iter().filter(|(f, _)| !f.starts_with("render") && !f.contains("tiled")) {
@@ -302,7 +304,7 @@ fn self_collision_constants_are_the_hosts() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 20, "five modules (step, XPBD, the hash, VBD, backward Euler), four constants");
+    assert_eq!(checked, 25, "five modules (step, XPBD, the hash, VBD, backward Euler), five constants");
 }
 
 /// The implicit integrators' constants are the host's, in both shading languages: VBD's friction

@@ -70,6 +70,17 @@ pub enum Binding {
     },
 }
 
+impl Binding {
+    /// The bytes a bind group binds of its buffer from offset 0: a dynamic uniform one block at a
+    /// time (the dynamic offset picks which), everything else whole (`None`).
+    pub fn bound_bytes(self) -> Option<u64> {
+        match self {
+            Binding::Uniform { size, dynamic: true } => Some(size),
+            _ => None,
+        }
+    }
+}
+
 /// A shader module of `shaders/`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Shader {

@@ -82,6 +82,18 @@ pub trait GpuBackend: Sized {
     fn read_timer(&mut self, pairs: u32) -> Result<f64, SimError>;
 }
 
+/// Splits one read-back, the first bytes of each buffer of `sources` one after another (as a
+/// backend copies them into one staging buffer for [`GpuBackend::read`]), into a vector a source.
+pub fn split_read_back<T>(bytes: &[u8], sources: &[(T, u64)]) -> Vec<Vec<u8>> {
+    let mut offset = 0usize;
+    (sources.iter())
+        .map(|&(_, size)| {
+            offset += size as usize;
+            bytes[offset - size as usize..offset].to_vec()
+        })
+        .collect()
+}
+
 /// A cloth simulated on a GPU through backend `B`.
 pub struct GpuSimulator<B: GpuBackend> {
     scene: Scene,

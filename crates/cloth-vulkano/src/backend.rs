@@ -307,12 +307,14 @@ impl GpuBackend for VulkanoBackend {
         _desc: &BindGroupDesc,
         buffers: &[&Subbuffer<[u8]>],
     ) -> Result<Arc<DescriptorSet>, SimError> {
-        let writes = (buffers.iter().zip(&kernel.bindings).enumerate()).map(|(binding, (buffer, kind))| match *kind {
-            Binding::Uniform { size, dynamic: true } => WriteDescriptorSet::buffer_with_range(
-                binding as u32,
-                DescriptorBufferInfo { buffer: (*buffer).clone(), range: 0..size },
-            ),
-            _ => WriteDescriptorSet::buffer(binding as u32, (*buffer).clone()),
+        let writes = (buffers.iter().zip(&kernel.bindings).enumerate()).map(|(binding, (buffer, kind))| {
+            match kind.bound_bytes() {
+                Some(size) => WriteDescriptorSet::buffer_with_range(
+                    binding as u32,
+                    DescriptorBufferInfo { buffer: (*buffer).clone(), range: 0..size },
+                ),
+                None => WriteDescriptorSet::buffer(binding as u32, (*buffer).clone()),
+            }
         });
         DescriptorSet::new(self.descriptors.clone(), kernel.layout.set_layouts()[0].clone(), writes, [])
             .map_err(|e| device_error(format!("descriptor set: {e}")))
@@ -399,13 +401,7 @@ impl GpuBackend for VulkanoBackend {
         self.submit_after(cb)?;
         self.wait()?;
         let bytes = staging.read().map_err(|e| device_error(format!("reading the read-back buffer: {e}")))?;
-        let mut offset = 0usize;
-        Ok((sources.iter())
-            .map(|&(_, size)| {
-                offset += size as usize;
-                bytes[offset - size as usize..offset].to_vec()
-            })
-            .collect())
+        Ok(cloth_gpu::simulator::split_read_back(&bytes, sources))
     }
 
     fn wait(&mut self) -> Result<(), SimError> {

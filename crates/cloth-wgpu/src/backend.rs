@@ -235,11 +235,7 @@ impl GpuBackend for WgpuBackend {
                 resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                     buffer,
                     offset: 0,
-                    // A dynamic uniform binds one block at a time; everything else whole.
-                    size: match *kind {
-                        Binding::Uniform { size, dynamic: true } => wgpu::BufferSize::new(size),
-                        _ => None,
-                    },
+                    size: kind.bound_bytes().and_then(wgpu::BufferSize::new),
                 }),
             })
             .collect();
@@ -324,13 +320,7 @@ impl GpuBackend for WgpuBackend {
             .map_err(|e| device_error(format!("mapping the read-back buffer: {e}")))?;
         let view =
             staging.get_mapped_range(..).map_err(|e| device_error(format!("reading the mapped buffer: {e:?}")))?;
-        let mut offset = 0usize;
-        let out = (sources.iter())
-            .map(|&(_, size)| {
-                offset += size as usize;
-                view[offset - size as usize..offset].to_vec()
-            })
-            .collect();
+        let out = cloth_gpu::simulator::split_read_back(&view, sources);
         drop(view);
         staging.unmap();
         self.check_device()?;
