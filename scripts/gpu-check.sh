@@ -2,7 +2,8 @@
 # Checks both GPU backends on the GPU of this machine and measures them: the checks CI cannot run
 # (CI has only lavapipe, a CPU implementation of Vulkan) and the figures of docs/performance.md.
 #
-# Usage: bash scripts/gpu-check.sh [conformance] [stability] [bench] [effects] [tuning] [compare] [peer] [study]
+# Usage: bash scripts/gpu-check.sh [conformance] [stability] [bench] [effects] [tuning] [compare]
+#                                   [compare-self] [peer] [study]
 #        (default: conformance bench)
 #
 #   conformance  the conformance suite and the block-order test with CI=1 (a missing adapter
@@ -23,6 +24,9 @@
 #                32 and 128, workgroups of 128 and 512, forward and alternating block orders)
 #   compare      the bench rows of docs/performance.md (128² × 53, 1024² and 2048² × 64) with this
 #                build and with the build at OTHER_CLOTH, by turns, ROUNDS times (default 2)
+#   compare-self the self-collision rows of `cloth bench --effects` on scenes/self_collision_bench.ron
+#                (SELF_EFFECT_GRIDS, default 256,1024) with this build and with the build at
+#                OTHER_CLOTH, by turns, ROUNDS times (default 2)
 #   peer         NVIDIA Warp's own cloth benchmark and its CuPy and PyTorch versions on the same
 #                grids (scripts/peer-cloth.py; warp-lang 1.0.2 must be importable; PEER_GRIDS,
 #                default 128,1024,2048)
@@ -37,8 +41,8 @@ CLOTH=${CLOTH:-target/release/cloth}
 checks=${*:-conformance bench}
 for check in $checks; do
   case $check in
-    conformance | stability | bench | effects | tuning | compare | peer | study) ;;
-    *) echo "gpu-check: unknown check '$check' (the checks: conformance stability bench effects tuning compare peer study)" >&2; exit 2 ;;
+    conformance | stability | bench | effects | tuning | compare | compare-self | peer | study) ;;
+    *) echo "gpu-check: unknown check '$check' (the checks: conformance stability bench effects tuning compare compare-self peer study)" >&2; exit 2 ;;
   esac
 done
 mkdir -p "$OUT"
@@ -149,6 +153,19 @@ if [[ " $checks " == *" compare "* ]]; then
       label="$(basename "$build") round $round"
       labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 128 --substeps scaled --frames 20 | tee -a "$OUT/compare.txt"
       labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 1024,2048 --substeps 64 --frames 20 | tee -a "$OUT/compare.txt"
+    done
+  done
+fi
+
+if [[ " $checks " == *" compare-self "* ]]; then
+  echo "== compare-self: the self-collision bench, this build against ${OTHER_CLOTH:?OTHER_CLOTH names the other build}"
+  : > "$OUT/compare-self.csv"
+  for round in $(seq "${ROUNDS:-2}"); do
+    for build in "$CLOTH" "$OTHER_CLOTH"; do
+      label="$(basename "$build") round $round"
+      labelled_bench "$build" "$label" "$OUT/compare-self.csv" --effects --scene scenes/self_collision_bench.ron \
+        --grids "${SELF_EFFECT_GRIDS:-256,1024}" --frames 10 | tee -a "$OUT/compare-self.txt"
+      grep -E "SelfCollision|candidate lists" "$OUT/rows.txt" | sed "s|^|$label |" | tee -a "$OUT/compare-self.txt"
     done
   done
 fi

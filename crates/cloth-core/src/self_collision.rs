@@ -73,6 +73,9 @@
 //! `C` is the longest interval (at most [`MAX_CHECK_INTERVAL`]) whose lookahead `L` takes at
 //! most half the margin, so a cloth that moves as a whole, falling or swinging, is rebuilt rarely;
 //! a cloth whose parts move against each other is rebuilt as often as that motion uses up `W`.
+//! Where even one substep's lookahead takes more than half the margin (σ = 1 and `W < 4 s_max Δt`),
+//! `C` is 1 and the rest of the margin is all the motion may use: with `L ≥ W` every check
+//! rebuilds, which is correct and costs a rebuild a substep.
 //! The hash of a rebuild has `T` buckets (a power of two at least the vertex count), each a list
 //! of the vertices whose cell falls in it (on the GPU, linked by an atomic exchange of the
 //! bucket's head; here, [`CellHash`], sorted by counting).
