@@ -1,7 +1,7 @@
 //! The GPU tuning flags every command that runs a simulation takes: one flag per field of
 //! [`GpuTuning`], with its default.
 
-use cloth_gpu::tuning::{DEFAULT_BLOCK_WIDTH, DEFAULT_WORKGROUP_SIZE};
+use cloth_gpu::tuning::{DEFAULT_WORKGROUP_SIZE, default_block_width};
 use cloth_gpu::{BlockOrder, CandidateListing, GpuTuning, TileConfig, Tiling};
 
 /// How the GPU backends lay their work out (see `cloth_gpu::GpuTuning`); nothing here changes a
@@ -20,7 +20,8 @@ pub struct TuningArgs {
     #[arg(long)]
     block_width: Option<u32>,
     /// Whether semi-implicit Euler fuses substeps in workgroup memory: auto (on GPUs, for grids
-    /// of up to 256²), on (wherever the device fits the tile), off.
+    /// of up to 256²), on (wherever the device fits the tile), off. Never with self-collision,
+    /// which runs one substep a dispatch.
     #[arg(long, default_value = "auto", value_parser = tiling)]
     tiling: Tiling,
     /// The fused kernel's tile, WIDTHxHEIGHTxSUBSTEPS (default: the largest of 32x16x2 and
@@ -93,7 +94,7 @@ impl TuningArgs {
     pub fn tuning(&self) -> GpuTuning {
         GpuTuning {
             workgroup_size: self.workgroup_size,
-            block_width: self.block_width.unwrap_or(DEFAULT_BLOCK_WIDTH.min(self.workgroup_size)),
+            block_width: self.block_width.unwrap_or_else(|| default_block_width(self.workgroup_size)),
             tiling: self.tiling,
             tile: self.tile,
             packed_state: self.packed_state,

@@ -16,6 +16,12 @@ pub const DEFAULT_WORKGROUP_SIZE: u32 = 256;
 /// springs read are mostly the workgroup's own and come from the L1 cache.
 pub const DEFAULT_BLOCK_WIDTH: u32 = 64;
 
+/// The block width a workgroup of `workgroup_size` invocations gets unless one is given:
+/// [`DEFAULT_BLOCK_WIDTH`], or the whole workgroup's width where it has fewer invocations.
+pub fn default_block_width(workgroup_size: u32) -> u32 {
+    DEFAULT_BLOCK_WIDTH.min(workgroup_size)
+}
+
 /// How the GPU backends lay the work out. Construct it as a struct literal over `Default`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GpuTuning {
@@ -26,7 +32,7 @@ pub struct GpuTuning {
     /// updates (a `block_width × workgroup_size / block_width` block): a power of two that divides
     /// the workgroup size, or 0 for rows of `workgroup_size` consecutive vertices. A grid
     /// narrower than the block gets a block of its next power of two. Default
-    /// [`DEFAULT_BLOCK_WIDTH`] (with a workgroup of fewer invocations, give at most that).
+    /// [`DEFAULT_BLOCK_WIDTH`] ([`default_block_width`] for another workgroup size).
     pub block_width: u32,
     /// Whether semi-implicit Euler fuses substeps in workgroup memory (never with
     /// `SelfCollision`, which runs on the `vec4` state). Default [`Tiling::Auto`].
@@ -56,7 +62,7 @@ impl Default for GpuTuning {
     fn default() -> Self {
         Self {
             workgroup_size: DEFAULT_WORKGROUP_SIZE,
-            block_width: DEFAULT_BLOCK_WIDTH,
+            block_width: default_block_width(DEFAULT_WORKGROUP_SIZE),
             tiling: Tiling::Auto,
             tile: None,
             packed_state: true,
