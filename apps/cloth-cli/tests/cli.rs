@@ -241,6 +241,29 @@ fn check_prints_counts_memory_and_the_bound() {
 }
 
 #[test]
+fn check_says_when_every_self_collision_check_would_rebuild() {
+    let out = cloth(&["check", "scenes/self_collision_bench.ron"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("checked every 4 substep(s)"), "{text}");
+    assert!(!text.contains("every check rebuilds"), "{text}");
+    // RK4's stages reach one substep past the check: with a margin of 0.1 mm that lookahead,
+    // 2 s_max Δt = 1.56 mm, takes the whole margin.
+    let scene =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/self_collision_bench.ron")).unwrap();
+    let thin = scene
+        .replace("margin: Spacings(1.5)", "margin: Meters(1e-4)")
+        .replace("    air_drag: 0.2,", "    air_drag: 0.2,\n    integrator: RungeKutta4,");
+    assert_ne!(thin, scene);
+    let path = std::env::temp_dir().join(format!("cloth-cli-thin-margin-{}.ron", std::process::id()));
+    std::fs::write(&path, thin).unwrap();
+    let out = cloth(&["check", path.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("every check rebuilds the lists") && text.contains("above 1.563e-3 m"), "{text}");
+    let _ = std::fs::remove_file(path);
+}
+
+#[test]
 fn bad_input_gives_a_clear_message_and_no_panic() {
     let out = cloth(&["run", "--grid", "1x5"]);
     let err = String::from_utf8_lossy(&out.stderr);
