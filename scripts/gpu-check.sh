@@ -145,29 +145,40 @@ if [[ " $checks " == *" tuning "* ]]; then
   done
 fi
 
-if [[ " $checks " == *" compare "* ]]; then
-  echo "== compare: this build against ${OTHER_CLOTH:?OTHER_CLOTH names the other build}"
-  : > "$OUT/compare.csv"
+# Runs the command "$@" with this build and with OTHER_CLOTH, by turns, ROUNDS times (default 2),
+# each time with `build` the binary and `label` its name and round.
+by_turns() {
   for round in $(seq "${ROUNDS:-2}"); do
     for build in "$CLOTH" "$OTHER_CLOTH"; do
       label="$(basename "$build") round $round"
-      labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 128 --substeps scaled --frames 20 | tee -a "$OUT/compare.txt"
-      labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 1024,2048 --substeps 64 --frames 20 | tee -a "$OUT/compare.txt"
+      "$@"
     done
   done
+}
+
+# The bench rows of docs/performance.md.
+compare_rows() {
+  labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 128 --substeps scaled --frames 20 | tee -a "$OUT/compare.txt"
+  labelled_bench "$build" "$label" "$OUT/compare.csv" --grids 1024,2048 --substeps 64 --frames 20 | tee -a "$OUT/compare.txt"
+}
+
+# The self-collision rows, with the candidate lists' counts.
+compare_self_rows() {
+  labelled_bench "$build" "$label" "$OUT/compare-self.csv" --effects --scene scenes/self_collision_bench.ron \
+    --grids "${SELF_EFFECT_GRIDS:-256,1024}" --frames 10 | tee -a "$OUT/compare-self.txt"
+  grep -E "SelfCollision|candidate lists" "$OUT/rows.txt" | sed "s|^|$label |" | tee -a "$OUT/compare-self.txt"
+}
+
+if [[ " $checks " == *" compare "* ]]; then
+  echo "== compare: this build against ${OTHER_CLOTH:?OTHER_CLOTH names the other build}"
+  : > "$OUT/compare.csv"
+  by_turns compare_rows
 fi
 
 if [[ " $checks " == *" compare-self "* ]]; then
   echo "== compare-self: the self-collision bench, this build against ${OTHER_CLOTH:?OTHER_CLOTH names the other build}"
   : > "$OUT/compare-self.csv"
-  for round in $(seq "${ROUNDS:-2}"); do
-    for build in "$CLOTH" "$OTHER_CLOTH"; do
-      label="$(basename "$build") round $round"
-      labelled_bench "$build" "$label" "$OUT/compare-self.csv" --effects --scene scenes/self_collision_bench.ron \
-        --grids "${SELF_EFFECT_GRIDS:-256,1024}" --frames 10 | tee -a "$OUT/compare-self.txt"
-      grep -E "SelfCollision|candidate lists" "$OUT/rows.txt" | sed "s|^|$label |" | tee -a "$OUT/compare-self.txt"
-    done
-  done
+  by_turns compare_self_rows
 fi
 
 if [[ " $checks " == *" peer "* ]]; then
