@@ -391,7 +391,7 @@ fn check(path: &PathBuf, grid: Option<[u32; 2]>, substeps: Option<Substeps>, bac
             q.check_interval,
             q.lookahead
         )?;
-        if cloth_core::self_collision::rebuild_due(0.0, q.lookahead, q.margin) {
+        if q.every_check_rebuilds() {
             out!(
                 "           every check rebuilds the lists, a rebuild a substep: the lookahead reaches the margin; \
                  a margin (self_collision.margin) above {:.3e} m, or a lower max_speed, leaves the cloth room to move",

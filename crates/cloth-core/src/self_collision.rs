@@ -218,6 +218,13 @@ impl SelfCollisionQuantities {
         }
     }
 
+    /// Whether every check rebuilds the candidate lists whatever the cloth does: the lookahead
+    /// alone reaches the margin ([`rebuild_due`] with nothing moved yet), so the lists are rebuilt
+    /// every substep. A wider margin, or a lower speed limit, leaves the cloth room to move.
+    pub fn every_check_rebuilds(&self) -> bool {
+        rebuild_due(0.0, self.lookahead, self.margin)
+    }
+
     /// Whether vertices `a` and `b` of an `nx`-wide grid are at least the thickness apart at
     /// rest (only those pairs repel): `(Δi Δu)² + (Δj Δv)² ≥ r²`.
     pub fn apart_at_rest(&self, a: u32, b: u32, nx: u32) -> bool {
@@ -875,5 +882,12 @@ mod tests {
         scene.integrator = Integrator::RungeKutta4;
         let rk4 = SelfCollisionQuantities::of(&scene);
         assert_eq!(rk4.lookahead, relative_step * rk4.check_interval as f64, "RK4's stages reach one substep further");
+        assert!(!q.every_check_rebuilds() && !rk4.every_check_rebuilds());
+        // A margin below one substep's relative step: RK4's lookahead alone reaches it, Euler's
+        // (which looks no further than the substep's start at C = 1) does not.
+        scene.self_collision.margin = Thickness::Meters(0.5 * relative_step);
+        assert!(SelfCollisionQuantities::of(&scene).every_check_rebuilds());
+        scene.integrator = Integrator::SemiImplicitEuler;
+        assert!(!SelfCollisionQuantities::of(&scene).every_check_rebuilds());
     }
 }

@@ -58,7 +58,7 @@ pub fn show(ui: &mut egui::Ui, ctx: &mut PanelContext<'_>) {
             "The longest interval (at most 8) whose lookahead, 2 s_max Δt (C − 1 + σ), takes at most half the margin \
              (σ = 0 for semi-implicit Euler, 1 for the other integrators)",
         );
-        if cloth_core::self_collision::rebuild_due(0.0, q.lookahead, q.margin) {
+        if q.every_check_rebuilds() {
             ui.colored_label(
                 egui::Color32::from_rgb(220, 150, 40),
                 format!(
