@@ -1231,3 +1231,57 @@ fn gpu_timing_measures_the_advances_when_on() {
         assert_eq!(sim.last_advance_counts().host_waits, 0, "{}", backend.name);
     }
 }
+
+/// A profiled frame is an ordinary frame: on a GPU backend it leaves the state bit for bit where
+/// `advance(1)` leaves it, and its passes are the frame's dispatches, a substep pass a substep
+/// and the two rebuild passes after every check, with a positive time no longer than the wall
+/// time around it; the CPU backends have no passes and do not advance.
+#[test]
+fn a_profiled_frame_is_an_ordinary_frame_timed_pass_by_pass() {
+    let _gpu = cloth_conformance::gpu_lock();
+    let mut scene = self_collision_scene(12, 12);
+    scene.effects = scene.effects.with(Effect::Gravity);
+    let substeps = scene.substeps_per_frame();
+    for backend in cloth_conformance::BACKENDS {
+        let (Some(mut profiled), Some(mut plain)) = (create(backend, &scene), create(backend, &scene)) else {
+            continue;
+        };
+        let gpu = backend.name == "wgpu" || backend.name == "vulkano";
+        if !gpu {
+            assert_eq!(profiled.profile_frame().unwrap(), None, "{}: no GPU passes", backend.name);
+            assert_eq!(profiled.read_state().unwrap(), plain.read_state().unwrap(), "{}: not advanced", backend.name);
+            continue;
+        }
+        for frame in 0..2 {
+            let start = std::time::Instant::now();
+            let passes =
+                profiled.profile_frame().unwrap().expect("lavapipe and GPUs write timestamps between dispatches");
+            let wall = start.elapsed().as_secs_f64();
+            plain.advance(1).unwrap();
+            let name = backend.name;
+            assert_eq!(profiled.read_state().unwrap(), plain.read_state().unwrap(), "{name}: frame {frame}");
+            assert_eq!(profiled.last_advance_counts().host_waits, 1, "{name}: one wait for the timestamps");
+            let dispatches = |pass: &str| {
+                let pass = format!("self-collision {pass}");
+                passes.iter().find(|p| p.name == pass).map_or(0, |p| p.dispatches)
+            };
+            let names: Vec<&str> = passes.iter().map(|p| p.name.as_str()).collect();
+            let step = passes.iter().find(|p| p.name == "Euler substep").expect("the substeps' pass");
+            assert_eq!(step.dispatches, substeps, "{name}: {names:?}");
+            assert_eq!(
+                dispatches("forced check"),
+                u32::from(frame == 0),
+                "{name}: the first frame's first check rebuilds"
+            );
+            let checks = dispatches("check") + dispatches("forced check");
+            assert!(checks >= 1, "{name}: {names:?}");
+            assert_eq!(dispatches("insert"), checks, "{name}: {names:?}");
+            assert_eq!(dispatches("candidates in lanes"), checks, "{name}: {names:?}");
+            let total: u32 = passes.iter().map(|p| p.dispatches).sum();
+            assert_eq!(total, substeps + 3 * checks, "{name}: no other pass: {names:?}");
+            let seconds: f64 = passes.iter().map(|p| p.seconds).sum();
+            assert!(seconds > 0.0 && seconds <= wall, "{name}: GPU {seconds} s, wall {wall} s");
+            assert!(passes.iter().all(|p| p.seconds >= 0.0 && p.seconds.is_finite()), "{name}: {passes:?}");
+        }
+    }
+}

@@ -22,6 +22,7 @@ macro_rules! out {
 mod bench;
 mod figure;
 mod picture;
+mod profile;
 mod render;
 mod report;
 mod study;
@@ -67,6 +68,9 @@ enum Command {
     Backends,
     /// Measure ms per frame and vertex-substeps per second of each backend (prints a table).
     Bench(bench::BenchArgs),
+    /// Where a GPU frame's time goes: each pass's dispatches and GPU time (a timestamp after
+    /// every dispatch).
+    Profile(profile::ProfileArgs),
     /// Studies (`cloth study accuracy`).
     #[command(subcommand)]
     Study(StudyCommand),
@@ -311,6 +315,7 @@ fn command(cli: Cli) -> Result<()> {
         Command::Run(args) => run(args),
         Command::Check { scene, grid, substeps, backend } => check(&scene, grid, substeps, &backend),
         Command::Bench(args) => bench::run(args),
+        Command::Profile(args) => profile::run(args),
         Command::View(args) => view(args),
         Command::Study(StudyCommand::Accuracy(args)) => study::accuracy(args),
         Command::Figure { figure, out } => {
@@ -625,6 +630,7 @@ mod tests {
                 plan_check(scene, *grid, *substeps, backend).map(|plan| plan.2)
             }
             Command::Bench(args) => bench::plan(args).map(|plan| plan.work),
+            Command::Profile(args) => profile::plan(args).map(|plan| plan.work),
             Command::Study(StudyCommand::Accuracy(args)) => study::plan(args).map(|plan| plan.work),
             Command::Figure { .. } | Command::Backends | Command::View(_) => Ok(WorkPlan::default()),
         }

@@ -80,5 +80,5 @@ pub use model::ClothModel;
 pub use quantities::SceneQuantities;
 pub use reference::{CpuSimulator, CpuSimulatorF64, ReferenceSimulator};
 pub use scene::{Scene, Substeps};
-pub use simulator::{AdvanceCounts, ClothState, Diagnostics, Simulator};
+pub use simulator::{AdvanceCounts, ClothState, Diagnostics, PassTime, Simulator};
 pub use springs::SpringKind;

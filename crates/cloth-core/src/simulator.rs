@@ -64,6 +64,22 @@ pub struct AdvanceCounts {
     pub host_waits: u32,
 }
 
+/// The GPU time of one pass of a profiled frame ([`Simulator::profile_frame`]): every dispatch
+/// of one pipeline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PassTime {
+    /// What the pass does, in words: its pipeline's name (`Euler substep`,
+    /// `self-collision check`, …).
+    pub name: String,
+    /// Its dispatches in the frame.
+    pub dispatches: u32,
+    /// Its GPU time in the frame, s: for each of its dispatches, the time from the timestamp
+    /// after the dispatch before it (the frame's first timestamp for the first) to the timestamp
+    /// after it, summed. So it includes the wait at the barrier before the dispatch, and a
+    /// dispatch of no workgroups (an indirect one sized to zero) still takes its launch.
+    pub seconds: f64,
+}
+
 /// A cloth simulator. One frame is `scene.substeps_per_frame()` substeps of
 /// `scene.substep_dt()`; [`Simulator::advance`] runs whole frames with no host round trip
 /// between substeps.
@@ -158,6 +174,21 @@ pub trait Simulator {
     /// # Errors
     /// [`SimError::Device`] when the read-back fails.
     fn take_gpu_seconds(&mut self) -> Result<Option<f64>, SimError> {
+        Ok(None)
+    }
+
+    /// Advances one frame, as `advance(1)` does, with a timestamp before its first dispatch and
+    /// after each, and returns where its GPU time went, pass by pass, in the order the passes
+    /// first run. `None`, without advancing, where there are no GPU passes (the CPU backends) or
+    /// the device cannot write timestamps between dispatches.
+    ///
+    /// A diagnostic, not a benchmark: it waits for the device (one host wait), and a timestamp
+    /// after every dispatch may hold the next one back a little, so the passes can add up to
+    /// somewhat more than the frame takes unprofiled ([`Simulator::set_gpu_timing`]).
+    ///
+    /// # Errors
+    /// [`SimError::Device`] when the device fails.
+    fn profile_frame(&mut self) -> Result<Option<Vec<PassTime>>, SimError> {
         Ok(None)
     }
 }

@@ -44,7 +44,8 @@ pub fn copy_bandwidth<B: GpuBackend>(tuning: &GpuTuning) -> Result<CopyBandwidth
         shader: Shader::Copy,
         bindings: vec![Binding::Storage { read_only: true }, Binding::Storage { read_only: false }],
     };
-    let pipeline = PipelineDesc { kernel: 0, label: "bandwidth copy".into(), constants: Vec::new() };
+    let pipeline =
+        PipelineDesc { kernel: 0, name: "copy".into(), label: "bandwidth copy".into(), constants: Vec::new() };
     let group = |label: &str| BindGroupDesc { kernel: 0, label: label.into(), buffers: Vec::new() };
     let (buffers, pipelines, groups) = backend.setup(|b| {
         let buffers = [b.create_buffer(&buffer("bandwidth a"))?, b.create_buffer(&buffer("bandwidth b"))?];

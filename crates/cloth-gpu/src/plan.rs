@@ -259,7 +259,10 @@ pub fn has_collider_kind(scene: &Scene, kind: ColliderKind) -> bool {
 pub struct PipelineDesc {
     /// The kernel.
     pub kernel: KernelId,
-    /// Label.
+    /// What it does, in words (`Euler substep`, `self-collision check`): a row of a frame's
+    /// profile ([`cloth_core::Simulator::profile_frame`]).
+    pub name: String,
+    /// Label of the device object.
     pub label: String,
     /// `(constant, value)`, booleans as 0 or 1.
     pub constants: Vec<(Constant, u32)>,
@@ -454,7 +457,12 @@ impl Builder<'_> {
     fn pipeline(&mut self, kernel: KernelId, label: &str, own: &[(Constant, u32)]) -> PipelineId {
         if self.plan.kernels[kernel].shader == Shader::SelfHash {
             let constants = own.to_vec();
-            self.plan.pipelines.push(PipelineDesc { kernel, label: format!("cloth {label} pipeline"), constants });
+            self.plan.pipelines.push(PipelineDesc {
+                kernel,
+                name: label.into(),
+                label: format!("cloth {label} pipeline"),
+                constants,
+            });
             return self.plan.pipelines.len() - 1;
         }
         let mut constants: Vec<(Constant, u32)> =
@@ -466,7 +474,12 @@ impl Builder<'_> {
             constants.push((Constant::WorkgroupSize, self.tuning.workgroup_size));
         }
         constants.extend_from_slice(own);
-        self.plan.pipelines.push(PipelineDesc { kernel, label: format!("cloth {label} pipeline"), constants });
+        self.plan.pipelines.push(PipelineDesc {
+            kernel,
+            name: label.into(),
+            label: format!("cloth {label} pipeline"),
+            constants,
+        });
         self.plan.pipelines.len() - 1
     }
 

@@ -3,7 +3,7 @@
 //! bytes in and out).
 
 use cloth_core::self_collision::CandidateListStats;
-use cloth_core::{AdvanceCounts, ClothState, Diagnostics, Scene, SimError, Simulator};
+use cloth_core::{AdvanceCounts, ClothState, Diagnostics, PassTime, Scene, SimError, Simulator};
 
 use crate::geometry::DeviceLimits;
 use crate::layout::{GpuCollider, GpuSelfControl, GpuSimParams};
@@ -69,6 +69,11 @@ pub trait GpuBackend: Sized {
     /// Records the frame into one command buffer (with a memory barrier between dispatches, and
     /// the timer's timestamps when timing is on) and submits it without waiting.
     fn submit(&mut self, frame: Frame<'_, Self>) -> Result<(), SimError>;
+    /// Records the frame as [`GpuBackend::submit`] does (the frame's `timestamps` are `None`), with
+    /// a timestamp before the first dispatch and after each, submits it and waits: the seconds
+    /// from each timestamp to the next, one a dispatch. `None`, recording nothing, where the device
+    /// cannot write timestamps between dispatches.
+    fn submit_profiled(&mut self, frame: Frame<'_, Self>) -> Result<Option<Vec<f64>>, SimError>;
     /// Writes `bytes` at the start of `buffer`, before the next submission runs.
     fn write(&mut self, buffer: &Self::Buffer, bytes: &[u8]) -> Result<(), SimError>;
     /// Reads the first `bytes` of each buffer, after everything submitted, with one host wait.
@@ -80,6 +85,24 @@ pub trait GpuBackend: Sized {
     /// The seconds the timer's pairs `0..pairs` span together, after everything submitted (one
     /// host wait).
     fn read_timer(&mut self, pairs: u32) -> Result<f64, SimError>;
+}
+
+/// The passes of a profiled frame: the seconds of each dispatch (as
+/// [`GpuBackend::submit_profiled`] returns them) summed by pipeline name (`names`, by
+/// [`crate::plan::PipelineId`]), in the order the passes first run.
+pub fn passes_of(dispatches: &[Dispatch], seconds: &[f64], names: &[String]) -> Vec<PassTime> {
+    let mut passes: Vec<PassTime> = Vec::new();
+    for (d, &t) in dispatches.iter().zip(seconds) {
+        let name = &names[d.pipeline];
+        match passes.iter_mut().find(|p| &p.name == name) {
+            Some(p) => {
+                p.dispatches += 1;
+                p.seconds += t;
+            }
+            None => passes.push(PassTime { name: name.clone(), dispatches: 1, seconds: t }),
+        }
+    }
+    passes
 }
 
 /// Splits one read-back, the first bytes of each buffer of `sources` one after another (as a
@@ -101,6 +124,8 @@ pub struct GpuSimulator<B: GpuBackend> {
     /// Bytes of each buffer.
     sizes: Vec<u64>,
     pipelines: Vec<B::Pipeline>,
+    /// What each pipeline does, in words (a profile's rows).
+    pipeline_names: Vec<String>,
     bind_groups: Vec<B::BindGroup>,
     schedule: Schedule,
     state: StateBuffers,
@@ -200,6 +225,7 @@ impl<B: GpuBackend> GpuSimulator<B> {
             free: bytemuck::cast_slice::<u8, [f32; 4]>(positions).iter().map(|p| p[3]).collect(),
             buffers,
             pipelines,
+            pipeline_names: plan.pipelines.iter().map(|p| p.name.clone()).collect(),
             bind_groups,
             schedule: plan.schedule,
             state: plan.state,
@@ -230,6 +256,26 @@ impl<B: GpuBackend> GpuSimulator<B> {
     /// The backend, with its device.
     pub fn backend(&self) -> &B {
         &self.backend
+    }
+
+    /// Lays out the dispatches of the next `substeps` substeps in `self.dispatches`; returns the
+    /// state buffer they leave current.
+    fn record(&mut self, substeps: u64) -> usize {
+        self.dispatches.clear();
+        self.schedule.frame_from(self.substeps_run, self.hash_stale, substeps, self.current, &mut self.dispatches)
+    }
+
+    /// After the dispatches of `substeps` substeps were submitted, leaving state buffer `next`
+    /// current.
+    fn submitted(&mut self, substeps: u64, next: usize) {
+        self.current = next;
+        self.hash_stale = false;
+        // The clock advances substep by substep, as the kernels' `velocity.w` does.
+        let dt = self.scene.substep_dt();
+        for _ in 0..substeps {
+            self.time_s += dt;
+        }
+        self.substeps_run += substeps;
     }
 
     fn read_buffers(&mut self, ids: &[usize]) -> Result<Vec<Vec<u8>>, SimError> {
@@ -276,22 +322,26 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
             self.timed = Some(0);
             self.last_advance.host_waits = 1;
         }
-        self.dispatches.clear();
-        self.current =
-            self.schedule.frame_from(self.substeps_run, self.hash_stale, substeps, self.current, &mut self.dispatches);
-        self.hash_stale = false;
+        let next = self.record(substeps);
         let (dispatches, pipelines, bind_groups) = (&self.dispatches, &self.pipelines, &self.bind_groups);
         let indirect = self.state.indirect.map(|id| &self.buffers[id]);
         self.backend.submit(Frame { timestamps: self.timed, dispatches, pipelines, bind_groups, indirect })?;
         self.timed = self.timed.map(|pairs| pairs + 1);
         self.last_advance.submissions = 1;
-        // The clock advances substep by substep, as the kernels' `velocity.w` does.
-        let dt = self.scene.substep_dt();
-        for _ in 0..substeps {
-            self.time_s += dt;
-        }
-        self.substeps_run += substeps;
+        self.submitted(substeps, next);
         Ok(())
+    }
+
+    fn profile_frame(&mut self) -> Result<Option<Vec<PassTime>>, SimError> {
+        let substeps = self.scene.substeps_per_frame() as u64;
+        let next = self.record(substeps);
+        let (dispatches, pipelines, bind_groups) = (&self.dispatches, &self.pipelines, &self.bind_groups);
+        let indirect = self.state.indirect.map(|id| &self.buffers[id]);
+        let frame = Frame { timestamps: None, dispatches, pipelines, bind_groups, indirect };
+        let Some(seconds) = self.backend.submit_profiled(frame)? else { return Ok(None) };
+        self.last_advance = AdvanceCounts { frames: 1, submissions: 1, host_waits: 1 };
+        self.submitted(substeps, next);
+        Ok(Some(passes_of(&self.dispatches, &seconds, &self.pipeline_names)))
     }
 
     fn update_parameters(&mut self, scene: &Scene) -> Result<(), SimError> {
@@ -385,5 +435,26 @@ impl<B: GpuBackend> Simulator for GpuSimulator<B> {
         let seconds = if pairs > 0 { self.backend.read_timer(pairs)? } else { 0.0 };
         self.timed = Some(0);
         Ok(Some(seconds + std::mem::take(&mut self.pending_seconds)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_profile_sums_each_pipelines_dispatches_in_the_order_they_first_run() {
+        let names: Vec<String> = ["check", "insert", "step", "forced check"].iter().map(|s| s.to_string()).collect();
+        let dispatch =
+            |pipeline| Dispatch { pipeline, bind_group: 0, workgroups: [1, 1], dynamic_offset: None, indirect: None };
+        // A check and an insert before every other substep, as a self-collision frame has them.
+        let frame: Vec<Dispatch> = [0, 1, 2, 2, 0, 1, 2, 2].into_iter().map(dispatch).collect();
+        let seconds = [1.0, 2.0, 10.0, 20.0, 3.0, 4.0, 30.0, 40.0];
+        let passes = passes_of(&frame, &seconds, &names);
+        let rows: Vec<(&str, u32, f64)> = passes.iter().map(|p| (p.name.as_str(), p.dispatches, p.seconds)).collect();
+        assert_eq!(rows, [("check", 2, 4.0), ("insert", 2, 6.0), ("step", 4, 100.0)]);
+        // A pipeline that never runs has no row; the rows add up to the frame.
+        let total: f64 = passes.iter().map(|p| p.seconds).sum();
+        assert_eq!(total, seconds.iter().sum::<f64>());
     }
 }

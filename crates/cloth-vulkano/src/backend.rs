@@ -26,7 +26,7 @@ use vulkano::sync::future::FenceSignalFuture;
 use vulkano::sync::{GpuFuture, PipelineStage};
 
 use crate::context::VulkanContext;
-use crate::raw::FrameRecorder;
+use crate::raw::{FrameRecorder, RawPrimary};
 use crate::{
     BACKEND_NAME, COPY_SPIRV, IMPLICIT_SPIRV, SELF_HASH_SPIRV, STEP_SPIRV, TILED_STEP_SPIRV, VBD_SPIRV, XPBD_SPIRV,
 };
@@ -139,6 +139,88 @@ impl VulkanoBackend {
             .copy_buffer(CopyBufferInfo::buffers(src, dst.clone().slice(0..bytes.len() as u64)))
             .map_err(|e| device_error(format!("recording a copy: {e}")))?;
         Ok(())
+    }
+
+    /// Records `frame` into one command buffer; with `profile`, a pool of one timestamp more
+    /// than the frame has dispatches, a timestamp before the first dispatch and after each.
+    fn record(&self, frame: Frame<'_, Self>, profile: Option<&Arc<QueryPool>>) -> Result<Arc<RawPrimary>, SimError> {
+        let mut recorder = FrameRecorder::begin(self.commands.clone(), self.context.queue.queue_family_index())
+            .map_err(device_error)?;
+        let timer = self.timer.as_ref().zip(frame.timestamps).map(|((pool, _), pair)| (pool.clone(), 2 * pair));
+        if let Some(pool) = profile {
+            // SAFETY: the pool's queries are reset just before, in the same command buffer, and
+            // read only after a wait for the device; the pool outlives the wait.
+            unsafe {
+                recorder
+                    .recording
+                    .reset_query_pool(pool, 0..frame.dispatches.len() as u32 + 1)
+                    .map_err(device_error)?;
+                recorder.recording.write_timestamp(pool, 0, PipelineStage::BottomOfPipe).map_err(device_error)?;
+            }
+        }
+        if let Some((pool, first)) = &timer {
+            // SAFETY: the pair is reset just before, in the same command buffer, and read only
+            // after a wait for the device; the pool lives as long as the backend.
+            unsafe {
+                recorder.recording.reset_query_pool(pool, *first..first + 2).map_err(device_error)?;
+                recorder.recording.write_timestamp(pool, *first, PipelineStage::TopOfPipe).map_err(device_error)?;
+            }
+        }
+        let mut bound = None;
+        for (k, d) in frame.dispatches.iter().enumerate() {
+            let pipeline = &frame.pipelines[d.pipeline];
+            let rec = &mut recorder.recording;
+            // SAFETY: the pipelines, descriptor sets and buffers live as long as the simulator,
+            // which waits for the device before dropping them; every kernel bounds-checks its
+            // invocation index (against the vertex count, a colour's constraint count or the
+            // grid), every buffer it indexes holds that many elements (the plan sizes them), and
+            // the indices it reads from buffers (springs' ends, candidates, hash links) are
+            // below the vertex count (the wgpu backend's shader modules give the whole argument).
+            unsafe {
+                if bound != Some(d.pipeline) {
+                    rec.bind_pipeline_compute(pipeline).map_err(|e| device_error(format!("binding: {e}")))?;
+                    bound = Some(d.pipeline);
+                }
+                let set = frame.bind_groups[d.bind_group].as_raw();
+                rec.bind_descriptor_sets(
+                    PipelineBindPoint::Compute,
+                    pipeline.layout(),
+                    0,
+                    &[set],
+                    d.dynamic_offset.as_slice(),
+                )
+                .map_err(|e| device_error(format!("binding: {e}")))?;
+                match (d.indirect, frame.indirect) {
+                    (Some(offset), Some(buffer)) => {
+                        let size = size_of::<DispatchIndirectCommand>() as u64;
+                        let sizes =
+                            buffer.clone().slice(offset..offset + size).reinterpret::<[DispatchIndirectCommand]>();
+                        rec.dispatch_indirect(&sizes)
+                    }
+                    _ => rec.dispatch([d.workgroups[0], d.workgroups[1], 1]),
+                }
+                .map_err(|e| device_error(format!("dispatch: {e}")))?;
+            }
+            if let Some(pool) = profile {
+                // SAFETY: as the timer's timestamps.
+                unsafe { recorder.recording.write_timestamp(pool, k as u32 + 1, PipelineStage::BottomOfPipe) }
+                    .map_err(device_error)?;
+            }
+            recorder.between_dispatches(frame.indirect.is_some()).map_err(device_error)?;
+        }
+        if let Some((pool, first)) = &timer {
+            // SAFETY: as above.
+            unsafe { recorder.recording.write_timestamp(pool, first + 1, PipelineStage::BottomOfPipe) }
+                .map_err(device_error)?;
+        }
+        recorder.end(self.no_resources.clone()).map_err(device_error)
+    }
+
+    /// The mask of a timestamp's valid bits on the queue, `None` where it writes none.
+    fn timestamp_mask(&self) -> Option<u64> {
+        let (device, queue) = (&self.context.device, &self.context.queue);
+        let family = &device.physical_device().queue_family_properties()[queue.queue_family_index() as usize];
+        family.timestamp_valid_bits.map(|bits| if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 })
     }
 
     /// Submits after the previous submission, without waiting for it.
@@ -321,61 +403,24 @@ impl GpuBackend for VulkanoBackend {
     }
 
     fn submit(&mut self, frame: Frame<'_, Self>) -> Result<(), SimError> {
-        let mut recorder = FrameRecorder::begin(self.commands.clone(), self.context.queue.queue_family_index())
-            .map_err(device_error)?;
-        let timer = self.timer.as_ref().zip(frame.timestamps).map(|((pool, _), pair)| (pool.clone(), 2 * pair));
-        if let Some((pool, first)) = &timer {
-            // SAFETY: the pair is reset just before, in the same command buffer, and read only
-            // after a wait for the device; the pool lives as long as the backend.
-            unsafe {
-                recorder.recording.reset_query_pool(pool, *first..first + 2).map_err(device_error)?;
-                recorder.recording.write_timestamp(pool, *first, PipelineStage::TopOfPipe).map_err(device_error)?;
-            }
-        }
-        let mut bound = None;
-        for d in frame.dispatches {
-            let pipeline = &frame.pipelines[d.pipeline];
-            let rec = &mut recorder.recording;
-            // SAFETY: the pipelines, descriptor sets and buffers live as long as the simulator,
-            // which waits for the device before dropping them; every kernel bounds-checks its
-            // invocation index (against the vertex count, a colour's constraint count or the
-            // grid), every buffer it indexes holds that many elements (the plan sizes them), and
-            // the indices it reads from buffers (springs' ends, candidates, hash links) are
-            // below the vertex count (the wgpu backend's shader modules give the whole argument).
-            unsafe {
-                if bound != Some(d.pipeline) {
-                    rec.bind_pipeline_compute(pipeline).map_err(|e| device_error(format!("binding: {e}")))?;
-                    bound = Some(d.pipeline);
-                }
-                let set = frame.bind_groups[d.bind_group].as_raw();
-                rec.bind_descriptor_sets(
-                    PipelineBindPoint::Compute,
-                    pipeline.layout(),
-                    0,
-                    &[set],
-                    d.dynamic_offset.as_slice(),
-                )
-                .map_err(|e| device_error(format!("binding: {e}")))?;
-                match (d.indirect, frame.indirect) {
-                    (Some(offset), Some(buffer)) => {
-                        let size = size_of::<DispatchIndirectCommand>() as u64;
-                        let sizes =
-                            buffer.clone().slice(offset..offset + size).reinterpret::<[DispatchIndirectCommand]>();
-                        rec.dispatch_indirect(&sizes)
-                    }
-                    _ => rec.dispatch([d.workgroups[0], d.workgroups[1], 1]),
-                }
-                .map_err(|e| device_error(format!("dispatch: {e}")))?;
-            }
-            recorder.between_dispatches(frame.indirect.is_some()).map_err(device_error)?;
-        }
-        if let Some((pool, first)) = &timer {
-            // SAFETY: as above.
-            unsafe { recorder.recording.write_timestamp(pool, first + 1, PipelineStage::BottomOfPipe) }
-                .map_err(device_error)?;
-        }
-        let cb = recorder.end(self.no_resources.clone()).map_err(device_error)?;
+        let cb = self.record(frame, None)?;
         self.submit_after(cb)
+    }
+
+    fn submit_profiled(&mut self, frame: Frame<'_, Self>) -> Result<Option<Vec<f64>>, SimError> {
+        let Some(mask) = self.timestamp_mask() else { return Ok(None) };
+        let count = frame.dispatches.len() as u32 + 1;
+        let info = QueryPoolCreateInfo { query_count: count, ..QueryPoolCreateInfo::query_type(QueryType::Timestamp) };
+        let pool = QueryPool::new(self.context.device.clone(), info)
+            .map_err(|e| device_error(format!("a query pool of {count} timestamps: {e}")))?;
+        let cb = self.record(frame, Some(&pool))?;
+        self.submit_after(cb)?;
+        self.wait()?;
+        let mut stamps = vec![0u64; count as usize];
+        (pool.get_results(0..count, &mut stamps, QueryResultFlags::WAIT))
+            .map_err(|e| device_error(format!("reading the timestamps: {e}")))?;
+        let period_s = self.context.device.physical_device().properties().timestamp_period as f64 * 1e-9;
+        Ok(Some(stamps.windows(2).map(|t| (t[1].wrapping_sub(t[0]) & mask) as f64 * period_s).collect()))
     }
 
     fn write(&mut self, buffer: &Subbuffer<[u8]>, bytes: &[u8]) -> Result<(), SimError> {
@@ -413,14 +458,12 @@ impl GpuBackend for VulkanoBackend {
 
     fn create_timer(&mut self) -> bool {
         if self.timer.is_none() {
-            let (device, queue) = (&self.context.device, &self.context.queue);
-            let family = &device.physical_device().queue_family_properties()[queue.queue_family_index() as usize];
             let info = QueryPoolCreateInfo {
                 query_count: 2 * TIMER_PAIRS,
                 ..QueryPoolCreateInfo::query_type(QueryType::Timestamp)
             };
-            if let (Some(bits), Ok(pool)) = (family.timestamp_valid_bits, QueryPool::new(device.clone(), info)) {
-                self.timer = Some((pool, if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 }));
+            if let (Some(mask), Ok(pool)) = (self.timestamp_mask(), QueryPool::new(self.context.device.clone(), info)) {
+                self.timer = Some((pool, mask));
             }
         }
         self.timer.is_some()

@@ -65,6 +65,52 @@ impl WgpuBackend {
             None => Ok(()),
         }
     }
+
+    /// Encodes `frame` in one compute pass; with `profile` (query sets of
+    /// `QUERY_SET_MAX_QUERIES` timestamps each), a timestamp before the first dispatch and after
+    /// each, numbered on across the sets.
+    fn encode(&self, frame: &Frame<'_, Self>, profile: &[wgpu::QuerySet]) -> wgpu::CommandEncoder {
+        let mut encoder =
+            self.context.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth frames") });
+        {
+            let timestamp_writes = match (&self.timer, frame.timestamps) {
+                (Some((query_set, _)), Some(pair)) => Some(wgpu::ComputePassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: Some(2 * pair),
+                    end_of_pass_write_index: Some(2 * pair + 1),
+                }),
+                _ => None,
+            };
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("cloth substeps"), timestamp_writes });
+            let mut bound = None;
+            let stamp = |pass: &mut wgpu::ComputePass, at: u32| {
+                if !profile.is_empty() {
+                    let max = wgpu::QUERY_SET_MAX_QUERIES;
+                    pass.write_timestamp(&profile[(at / max) as usize], at % max);
+                }
+            };
+            stamp(&mut pass, 0);
+            for (k, d) in frame.dispatches.iter().enumerate() {
+                if bound != Some(d.pipeline) {
+                    pass.set_pipeline(&frame.pipelines[d.pipeline]);
+                    bound = Some(d.pipeline);
+                }
+                let offsets = d.dynamic_offset.as_slice();
+                pass.set_bind_group(0, &frame.bind_groups[d.bind_group], offsets);
+                match (d.indirect, frame.indirect) {
+                    (Some(offset), Some(buffer)) => pass.dispatch_workgroups_indirect(buffer, offset),
+                    _ => pass.dispatch_workgroups(d.workgroups[0], d.workgroups[1], 1),
+                }
+                stamp(&mut pass, k as u32 + 1);
+            }
+        }
+        if let (Some((queries, resolved)), Some(pair)) = (&self.timer, frame.timestamps) {
+            let offset = pair as u64 * wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
+            encoder.resolve_query_set(queries, 2 * pair..2 * pair + 2, resolved, offset);
+        }
+        encoder
+    }
 }
 
 impl GpuBackend for WgpuBackend {
@@ -248,42 +294,49 @@ impl GpuBackend for WgpuBackend {
 
     fn submit(&mut self, frame: Frame<'_, Self>) -> Result<(), SimError> {
         self.check_device()?;
-        let device = &self.context.device;
-        let mut encoder =
-            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cloth frames") });
-        {
-            let timestamp_writes = match (&self.timer, frame.timestamps) {
-                (Some((query_set, _)), Some(pair)) => Some(wgpu::ComputePassTimestampWrites {
-                    query_set,
-                    beginning_of_pass_write_index: Some(2 * pair),
-                    end_of_pass_write_index: Some(2 * pair + 1),
-                }),
-                _ => None,
-            };
-            let mut pass = encoder
-                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("cloth substeps"), timestamp_writes });
-            let mut bound = None;
-            for d in frame.dispatches {
-                if bound != Some(d.pipeline) {
-                    pass.set_pipeline(&frame.pipelines[d.pipeline]);
-                    bound = Some(d.pipeline);
-                }
-                let offsets = d.dynamic_offset.as_slice();
-                pass.set_bind_group(0, &frame.bind_groups[d.bind_group], offsets);
-                match (d.indirect, frame.indirect) {
-                    (Some(offset), Some(buffer)) => pass.dispatch_workgroups_indirect(buffer, offset),
-                    _ => pass.dispatch_workgroups(d.workgroups[0], d.workgroups[1], 1),
-                }
-            }
-        }
-        if let (Some((queries, resolved)), Some(pair)) = (&self.timer, frame.timestamps) {
-            let offset = pair as u64 * wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
-            encoder.resolve_query_set(queries, 2 * pair..2 * pair + 2, resolved, offset);
-        }
+        let encoder = self.encode(&frame, &[]);
         self.context.queue.submit([encoder.finish()]);
         // Frees finished work without waiting for the GPU.
-        let _ = device.poll(wgpu::PollType::Poll);
+        let _ = self.context.device.poll(wgpu::PollType::Poll);
         Ok(())
+    }
+
+    fn submit_profiled(&mut self, frame: Frame<'_, Self>) -> Result<Option<Vec<f64>>, SimError> {
+        let needed = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES;
+        if !self.context.device.features().contains(needed) {
+            return Ok(None);
+        }
+        self.check_device()?;
+        let device = &self.context.device;
+        // A query set holds at most QUERY_SET_MAX_QUERIES timestamps: a frame of more dispatches
+        // (an XPBD frame) takes several.
+        let count = frame.dispatches.len() as u32 + 1;
+        let sets: Vec<wgpu::QuerySet> = (0..count.div_ceil(wgpu::QUERY_SET_MAX_QUERIES))
+            .map(|_| {
+                device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("cloth profile timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: wgpu::QUERY_SET_MAX_QUERIES,
+                })
+            })
+            .collect();
+        let resolved = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cloth resolved profile timestamps"),
+            size: sets.len() as u64 * wgpu::QUERY_SET_MAX_QUERIES as u64 * wgpu::QUERY_SIZE as u64,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.encode(&frame, &sets);
+        for (k, set) in sets.iter().enumerate() {
+            let queries = count.saturating_sub(k as u32 * wgpu::QUERY_SET_MAX_QUERIES).min(wgpu::QUERY_SET_MAX_QUERIES);
+            let offset = k as u64 * wgpu::QUERY_SET_MAX_QUERIES as u64 * wgpu::QUERY_SIZE as u64;
+            encoder.resolve_query_set(set, 0..queries, &resolved, offset);
+        }
+        self.context.queue.submit([encoder.finish()]);
+        let bytes = self.read(&[(&resolved, count as u64 * wgpu::QUERY_SIZE as u64)])?.remove(0);
+        let stamps: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes);
+        let period_s = self.context.queue.get_timestamp_period() as f64 * 1e-9;
+        Ok(Some(stamps.windows(2).map(|t| t[1].saturating_sub(t[0]) as f64 * period_s).collect()))
     }
 
     fn write(&mut self, buffer: &wgpu::Buffer, bytes: &[u8]) -> Result<(), SimError> {

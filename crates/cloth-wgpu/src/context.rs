@@ -80,7 +80,8 @@ fn no_adapter_reason() -> String {
 /// The features and limits the simulator asks of a device on `adapter`: the largest storage
 /// buffers, workgroup grids and workgroup memory it offers, every storage buffer per stage it
 /// offers (the force kernel binds up to 15, more than WebGPU's default of 8; the plan refuses a
-/// device with fewer than a kernel needs), and timestamp queries where there are any.
+/// device with fewer than a kernel needs), and timestamp queries where there are any (between
+/// the dispatches of a pass too, for a frame's profile).
 /// A host that opens the device itself (the inspector shares eframe's) requests these so the
 /// simulator can run on it.
 pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Limits) {
@@ -96,7 +97,7 @@ pub fn device_requirements(adapter: &wgpu::Adapter) -> (wgpu::Features, wgpu::Li
         max_compute_workgroup_storage_size: offered.max_compute_workgroup_storage_size,
         ..wgpu::Limits::default()
     };
-    (adapter.features() & wgpu::Features::TIMESTAMP_QUERY, limits)
+    (adapter.features() & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES), limits)
 }
 
 impl GpuContext {
