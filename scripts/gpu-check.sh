@@ -18,7 +18,8 @@
 #   effects      `cloth bench --effects`: what each effect of scenes/flag.ron costs (EFFECT_GRIDS,
 #                default 128,512), each collider kind of scenes/colliders.ron
 #                (COLLIDER_EFFECT_GRIDS, default 256), and self-collision on
-#                scenes/self_collision_bench.ron (SELF_EFFECT_GRIDS, default 256,1024)
+#                scenes/self_collision_bench.ron (SELF_EFFECT_GRIDS, default 256,1024), with
+#                `cloth profile` of that scene's timed frames with and without self-collision
 #   tuning       the bench at 512², 1024² and 2048² × 64 under each GPU tuning in TUNINGS (a list
 #                separated by ';' of `cloth bench` flags; default: the defaults, then block widths
 #                32 and 128, workgroups of 128 and 512, forward and alternating block orders)
@@ -121,6 +122,17 @@ if [[ " $checks " == *" effects "* ]]; then
   echo "== bench --effects on scenes/self_collision_bench.ron (the self-collision row)"
   "$CLOTH" bench --effects --scene scenes/self_collision_bench.ron --backends wgpu,vulkano \
     --grids "${SELF_EFFECT_GRIDS:-256,1024}" --frames 10 --csv "$OUT/effects-self.csv" 2>&1 | tee "$OUT/effects-self.txt"
+  echo "== profile of scenes/self_collision_bench.ron, frames 2 to 51, with and without self-collision"
+  sed 's/, *SelfCollision\]/]/' scenes/self_collision_bench.ron > "$OUT/self_collision_bench_without.ron"
+  grids=${SELF_EFFECT_GRIDS:-256,1024}
+  for n in ${grids//,/ }; do
+    for b in wgpu vulkano; do
+      for scene in scenes/self_collision_bench.ron "$OUT/self_collision_bench_without.ron"; do
+        "$CLOTH" profile "$scene" --backend "$b" --grid "${n}x$n" --skip 1 --frames 50 \
+          --csv "$OUT/profile-$b-$n-$(basename "$scene" .ron).csv" 2>&1 | grep -v '^wrote' | tee -a "$OUT/profile-self.txt"
+      done
+    done
+  done
 fi
 
 # Runs the bench with the binary $1 and the flags $3.., labelling its CSV rows with $2.

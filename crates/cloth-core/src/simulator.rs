@@ -180,7 +180,8 @@ pub trait Simulator {
     /// Advances one frame, as `advance(1)` does, with a timestamp before its first dispatch and
     /// after each, and returns where its GPU time went, pass by pass, in the order the passes
     /// first run. `None`, without advancing, where there are no GPU passes (the CPU backends) or
-    /// the device cannot write timestamps between dispatches.
+    /// the device cannot write timestamps between dispatches. The timer of
+    /// [`Simulator::set_gpu_timing`] does not count the frame.
     ///
     /// A diagnostic, not a benchmark: it waits for the device (one host wait), and a timestamp
     /// after every dispatch may hold the next one back a little, so the passes can add up to
