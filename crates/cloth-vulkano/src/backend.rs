@@ -206,7 +206,8 @@ impl VulkanoBackend {
                 unsafe { recorder.recording.write_timestamp(pool, k as u32 + 1, PipelineStage::BottomOfPipe) }
                     .map_err(device_error)?;
             }
-            recorder.between_dispatches(frame.indirect.is_some()).map_err(device_error)?;
+            let next_is_indirect = frame.dispatches.get(k + 1).is_some_and(|next| next.indirect.is_some());
+            recorder.between_dispatches(next_is_indirect).map_err(device_error)?;
         }
         if let Some((pool, first)) = &timer {
             // SAFETY: as above.

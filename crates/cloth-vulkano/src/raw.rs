@@ -117,7 +117,10 @@ impl FrameRecorder {
     }
 
     /// The barrier between two dispatches: the next one may read and write what this one wrote,
-    /// and, in a frame with `indirect` dispatches, read its size from it.
+    /// and, where it is `indirect`, read its size from it. Only the barrier before an indirect
+    /// dispatch waits for the indirect-command stage: a barrier's second scope covers every later
+    /// command, so the indirect reads further on are covered too, and the write of the next sizes
+    /// waits for those reads anyway, since a dispatch's indirect read comes before its shader.
     pub fn between_dispatches(&mut self, indirect: bool) -> Result<(), String> {
         let compute = PipelineStages::COMPUTE_SHADER;
         let (stages, reads) = if indirect {
