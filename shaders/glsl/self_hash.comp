@@ -55,6 +55,9 @@ shared uint rebuilds_so_far;
 // Vertices the candidates pass lists a workgroup, and invocations a vertex
 // (cloth_gpu::layout::{LISTING_VERTICES, LISTING_LANES}).
 const uint LISTING_VERTICES = 28u;
+// The side of the square block of vertices a workgroup of the candidates pass lists
+// (cloth_gpu::layout::LISTING_BLOCK).
+const uint LISTING_BLOCK = 16u;
 const uint LISTING_LANES = 9u;
 // The candidates pass's candidates of each of its vertices, as the lanes find them, and their counts.
 shared uint found[LISTING_VERTICES][LIST_CAPACITY];
@@ -232,14 +235,24 @@ void main() {
         list_candidates_in_lanes(gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x, gl_LocalInvocationIndex, rebuilds);
         return;
     }
+    if (HASH_PASS == 1u) {
+        // One invocation a vertex, a workgroup a block of LISTING_BLOCK × LISTING_BLOCK vertices,
+        // whose searches walk overlapping cells (cloth_gpu::layout::LISTING_BLOCK).
+        uint g = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        uint local_index = gl_LocalInvocationIndex;
+        uint blocks_along_i = (params.grid_nx + LISTING_BLOCK - 1u) / LISTING_BLOCK;
+        uint vi = (g % blocks_along_i) * LISTING_BLOCK + local_index % LISTING_BLOCK;
+        uint vj = (g / blocks_along_i) * LISTING_BLOCK + local_index / LISTING_BLOCK;
+        if (vi >= params.grid_nx || vj >= params.grid_ny) {
+            return;
+        }
+        list_candidates(vj * params.grid_nx + vi, rebuilds);
+        return;
+    }
     // One invocation a vertex.
     uint i = gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 256u + gl_GlobalInvocationID.x;
     if (i >= params.vertex_count) {
         return;
     }
-    if (HASH_PASS == 0u) {
-        insert(i, rebuilds);
-    } else {
-        list_candidates(i, rebuilds);
-    }
+    insert(i, rebuilds);
 }

@@ -44,6 +44,9 @@ var<workgroup> rebuilds_so_far: u32;
 // Vertices the candidates pass lists a workgroup, and invocations a vertex
 // (cloth_gpu::layout::{LISTING_VERTICES, LISTING_LANES}).
 const LISTING_VERTICES: u32 = 28u;
+// The side of the square block of vertices a workgroup of the candidates pass lists
+// (cloth_gpu::layout::LISTING_BLOCK).
+const LISTING_BLOCK: u32 = 16u;
 const LISTING_LANES: u32 = 9u;
 // The candidates pass's candidates of each of its vertices, as the lanes find them, and their counts.
 var<workgroup> found: array<array<u32, LIST_CAPACITY>, LISTING_VERTICES>;
@@ -227,14 +230,23 @@ fn build(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
         list_candidates_in_lanes(group.y * groups.x + group.x, local, rebuilds);
         return;
     }
+    if (HASH_PASS == 1u) {
+        // One invocation a vertex, a workgroup a block of LISTING_BLOCK × LISTING_BLOCK vertices,
+        // whose searches walk overlapping cells (cloth_gpu::layout::LISTING_BLOCK).
+        let g = group.y * groups.x + group.x;
+        let blocks_along_i = (params.grid_nx + LISTING_BLOCK - 1u) / LISTING_BLOCK;
+        let vi = (g % blocks_along_i) * LISTING_BLOCK + local % LISTING_BLOCK;
+        let vj = (g / blocks_along_i) * LISTING_BLOCK + local / LISTING_BLOCK;
+        if (vi >= params.grid_nx || vj >= params.grid_ny) {
+            return;
+        }
+        list_candidates(vj * params.grid_nx + vi, rebuilds);
+        return;
+    }
     // One invocation a vertex.
     let i = id.y * groups.x * 256u + id.x;
     if (i >= params.vertex_count) {
         return;
     }
-    if (HASH_PASS == 0u) {
-        insert(i, rebuilds);
-    } else {
-        list_candidates(i, rebuilds);
-    }
+    insert(i, rebuilds);
 }

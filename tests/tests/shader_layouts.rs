@@ -351,6 +351,7 @@ fn candidate_listing_constants_are_the_hosts() {
     let expected = [
         ("LISTING_VERTICES", cloth_gpu::layout::LISTING_VERTICES),
         ("LISTING_LANES", cloth_gpu::layout::LISTING_LANES),
+        ("LISTING_BLOCK", cloth_gpu::layout::LISTING_BLOCK),
     ];
     let module = naga::front::wgsl::parse_str(cloth_wgpu::SELF_HASH_SHADER).expect("self_hash.wgsl parses");
     let glsl = include_str!("../../shaders/glsl/self_hash.comp");

@@ -173,6 +173,13 @@ pub const LISTING_LANES: u32 = 9;
 /// invocations) on a small grid, [`LISTING_LANES`] invocations each.
 pub const LISTING_VERTICES: u32 = crate::plan::SELF_HASH_WORKGROUP / LISTING_LANES;
 
+/// The side of the square block of vertices a workgroup of the candidates pass lists with one
+/// invocation a vertex ([`crate::plan::SELF_HASH_WORKGROUP`] = `LISTING_BLOCK²`). The searches of
+/// a block's vertices walk overlapping cells, whose records the workgroup then reads from its
+/// multiprocessor's cache; a workgroup that took a quarter of a 1024-vertex row walked cells
+/// strung along 86 cells of the cloth (docs/performance.md, "What self-collision costs").
+pub const LISTING_BLOCK: u32 = 16;
+
 /// Grids of fewer vertices than this list their candidates in lanes ([`LISTING_LANES`]); larger
 /// ones one invocation a vertex: 2¹⁸, about the invocations the H200's 132 multiprocessors hold at
 /// once (2048 each).

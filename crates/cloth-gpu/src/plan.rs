@@ -12,7 +12,7 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
     COLOR_RANGE_STRIDE, GpuCgCounters, GpuCgStep, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl,
-    GpuSimParams, GpuVbdSweep, LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, MultigridLevels,
+    GpuSimParams, GpuVbdSweep, LISTING_IN_LANES_BELOW, LISTING_BLOCK, LISTING_VERTICES, MAX_COLLIDERS, MultigridLevels,
     REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
@@ -742,12 +742,21 @@ fn self_collision_buffers(b: &mut Builder) -> SelfCollisionBuffers {
     }
 }
 
-/// The workgroups of a rebuild pass of `self_hash`: one invocation a vertex, or
-/// [`LISTING_VERTICES`] vertices a workgroup when the candidates are listed in lanes.
+/// The workgroups of a rebuild pass of `self_hash`: one invocation a vertex (the candidates pass
+/// a [`LISTING_BLOCK`]² block of the grid a workgroup), or [`LISTING_VERTICES`] vertices a
+/// workgroup when the candidates are listed in lanes.
 fn self_hash_workgroups(b: &Builder, pass: HashPass) -> [u32; 2] {
     let n = b.scene.vertex_count() as u32;
-    let vertices_a_workgroup = if pass == HashPass::CandidatesInLanes { LISTING_VERTICES } else { SELF_HASH_WORKGROUP };
-    spilled_workgroups(n, vertices_a_workgroup, b.limits.max_workgroups_per_dimension)
+    let max = b.limits.max_workgroups_per_dimension;
+    match pass {
+        HashPass::CandidatesInLanes => spilled_workgroups(n, LISTING_VERTICES, max),
+        HashPass::Candidates => {
+            // A workgroup a square block of the grid (LISTING_BLOCK).
+            let [nx, ny] = b.scene.cloth.resolution;
+            spilled_workgroups(nx.div_ceil(LISTING_BLOCK) * ny.div_ceil(LISTING_BLOCK), 1, max)
+        }
+        _ => spilled_workgroups(n, SELF_HASH_WORKGROUP, max),
+    }
 }
 
 /// Self-collision's check (one workgroup) and the rebuild's indirect passes, reading state `k`'s
