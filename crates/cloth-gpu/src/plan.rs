@@ -12,7 +12,7 @@ use cloth_core::{ClothModel, Effect, Integrator, Scene, SimError};
 use crate::geometry::{self, BlockGrid, DeviceLimits, TileConfig, spilled_workgroups};
 use crate::layout::{
     COLOR_RANGE_STRIDE, GpuCgCounters, GpuCgStep, GpuCollider, GpuColorRange, GpuConstraint, GpuSelfControl,
-    GpuSimParams, GpuVbdSweep, LISTING_IN_LANES_BELOW, LISTING_BLOCK, LISTING_VERTICES, MAX_COLLIDERS, MultigridLevels,
+    GpuSimParams, GpuVbdSweep, LISTING_BLOCK, LISTING_IN_LANES_BELOW, LISTING_VERTICES, MAX_COLLIDERS, MultigridLevels,
     REBUILD_PASSES, SelfHashTable,
 };
 use crate::schedule::{PackedPasses, Pass, Schedule, SelfCollisionChecks, TiledPass};
