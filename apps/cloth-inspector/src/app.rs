@@ -64,6 +64,8 @@ pub struct LaunchOptions {
     pub color: Option<ColorMode>,
     /// Measure the cost of each effect at start (a headless run waits for it and logs it).
     pub measure_effects: bool,
+    /// A headless run profiles its last frame (and logs the profile).
+    pub profile_frame: bool,
     /// Set when a headless run fails to write its screenshot, so the process exits non-zero.
     pub headless_failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
@@ -101,6 +103,12 @@ pub struct Runtime {
     study: panels::study::StudyPanel,
     export: panels::export::ExportPanel,
     effect_costs: panels::effect_costs::EffectCostsPanel,
+    /// The last profiled frame.
+    profile: Option<panels::profile::FrameProfile>,
+    /// Whether a profile came since the panels were last drawn (its section opens to show it).
+    profile_fresh: bool,
+    /// Whether a headless run profiles its last frame.
+    profile_last_frame: bool,
     /// How the GPU backends lay their work out, and the draft the tuning panel edits.
     tuning: GpuTuning,
     tuning_draft: GpuTuning,
@@ -194,6 +202,9 @@ impl InspectorApp {
                 study: Default::default(),
                 export: Default::default(),
                 effect_costs: Default::default(),
+                profile: None,
+                profile_fresh: false,
+                profile_last_frame: options.profile_frame,
                 tuning: GpuTuning::default(),
                 tuning_draft: GpuTuning::default(),
                 dragged_collider: 0,
@@ -307,6 +318,7 @@ impl InspectorApp {
                 self.switch_backend(&name);
             }
             Command::StepOnce => self.advance(1),
+            Command::ProfileFrame => self.profile_frame(),
             Command::ApplyTuning(tuning) => {
                 let previous = std::mem::replace(&mut self.runtime.tuning, tuning);
                 let name = self.state.backend.clone();
@@ -390,6 +402,24 @@ impl InspectorApp {
                 self.runtime.problems = vec![problem.clone()];
                 self.runtime.rejected = Some((self.state.scene.clone(), problem));
             }
+        }
+    }
+
+    /// Advances one frame with a timestamp after every dispatch and keeps where its GPU time went
+    /// (the plots catch up at their next sample).
+    fn profile_frame(&mut self) {
+        let Some(sim) = self.runtime.sim.as_mut() else { return };
+        let (backend, adapter) = (sim.get().backend_name().to_string(), sim.get().adapter_name());
+        match sim.get().profile_frame() {
+            Ok(Some(passes)) => {
+                self.runtime.sim_time_s += sim.scene().time.frame_dt;
+                self.runtime.frames_since_sample += 1;
+                let time_s = self.runtime.sim_time_s;
+                self.runtime.profile = Some(panels::profile::FrameProfile { passes, backend, adapter, time_s });
+                self.runtime.profile_fresh = true;
+            }
+            Ok(None) => self.runtime.notices.push(format!("{backend} on {adapter} has no GPU passes to profile")),
+            Err(e) => self.runtime.notices.push(format!("the frame's profile failed on {backend}: {e}")),
         }
     }
 
@@ -584,6 +614,9 @@ impl InspectorApp {
                     for line in self.runtime.effect_costs.summary() {
                         eprintln!("{line}");
                     }
+                    for line in self.runtime.profile.iter().flat_map(|p| p.summary()) {
+                        eprintln!("{line}");
+                    }
                     eprintln!("wrote {}", path.display());
                 }
                 Err(e) => {
@@ -592,6 +625,13 @@ impl InspectorApp {
                 }
             }
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
+        if self.runtime.frames_run >= frames && self.runtime.profile_last_frame {
+            // One more frame, profiled; the next drawing shows it, then the picture is taken.
+            self.runtime.profile_last_frame = false;
+            self.profile_frame();
+            ctx.request_repaint();
             return;
         }
         // A measurement started at launch is waited for, so the picture shows it.
@@ -732,6 +772,13 @@ impl eframe::App for InspectorApp {
                         .default_open(true)
                         .show(ui, |ui| self.runtime.effect_costs.show(ui, sim.scene(), backend, &self.runtime.tuning));
                 }
+                let mut header = egui::CollapsingHeader::new("Frame profile");
+                if std::mem::take(&mut self.runtime.profile_fresh) {
+                    header = header.open(Some(true));
+                }
+                header.show(ui, |ui| {
+                    panels::profile::show(ui, self.runtime.profile.as_ref(), backend, &mut self.runtime.commands)
+                });
                 egui::CollapsingHeader::new("Accuracy study")
                     .show(ui, |ui| self.runtime.study.show(ui, &self.state.scene, backend, &self.runtime.tuning));
                 egui::CollapsingHeader::new("Export")

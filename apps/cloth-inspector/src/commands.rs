@@ -17,4 +17,6 @@ pub enum Command {
     StepOnce,
     /// Hand the running cloth to a simulator of the same backend with this GPU tuning.
     ApplyTuning(cloth_gpu::GpuTuning),
+    /// Advance one frame with a GPU timestamp after every dispatch, and show where its time went.
+    ProfileFrame,
 }

@@ -40,6 +40,10 @@ struct Args {
     /// it; with --screenshot the run waits for it and prints it).
     #[arg(long)]
     measure_effects: bool,
+    /// With --screenshot: profile the last frame on a GPU backend (the stats panel shows it, and
+    /// the run prints it).
+    #[arg(long)]
+    profile_frame: bool,
 }
 
 /// Runs the inspector; an error ends it with its message and exit code 1 (a headless run also
@@ -87,6 +91,7 @@ fn inspect(args: Args, headless_failed: Arc<AtomicBool>) -> Result<()> {
         screenshot: args.screenshot.map(|p| (args.frames, p)),
         color: args.color.and_then(|c| cloth_view::ColorMode::from_name(&c)),
         measure_effects: args.measure_effects,
+        profile_frame: args.profile_frame,
         headless_failed,
     };
     let native = eframe::NativeOptions {

@@ -7,6 +7,7 @@ pub mod contact;
 pub mod effect_costs;
 pub mod effects;
 pub mod export;
+pub mod profile;
 pub mod scene;
 pub mod springs;
 pub mod stats;
