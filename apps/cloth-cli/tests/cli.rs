@@ -532,6 +532,42 @@ fn bench_writes_a_row_per_backend_grid_and_step_with_gpu_time_and_ceiling() {
 /// `cloth bench --effects` times each row repeatedly and says of each added effect whether it
 /// costs, saves, or is inside the noise: never a bare negative cost. Fewer than three timings
 /// are refused, naming the flag.
+/// `cloth profile` on a GPU backend: a row a pass, the substeps' and self-collision's, with the
+/// frame's dispatches in the table and the CSV; the CPU backends are refused.
+#[test]
+fn profile_prints_and_writes_each_pass_of_a_gpu_frame() {
+    let csv = std::env::temp_dir().join(format!("cloth-profile-{}.csv", std::process::id()));
+    let out = cloth(&[
+        "profile",
+        "scenes/self_collision_bench.ron",
+        "--backend",
+        "vulkano",
+        "--grid",
+        "12x12",
+        "--frames",
+        "2",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "profile failed: {text}\n{}", String::from_utf8_lossy(&out.stderr));
+    for pass in ["Euler substep", "self-collision forced check", "self-collision check", "self-collision insert"] {
+        assert!(text.lines().any(|l| l.starts_with(pass)), "no row {pass}:\n{text}");
+    }
+    assert!(text.contains("checks rebuilt the lists"), "{text}");
+    let table = std::fs::read_to_string(&csv).expect("the CSV was written");
+    let _ = std::fs::remove_file(&csv);
+    let step: Vec<&str> =
+        table.lines().find(|l| l.contains(",Euler substep,")).expect("the substeps' row").split(',').collect();
+    // 64 substeps a frame, one dispatch each; then the pass's GPU ms a frame and µs a dispatch.
+    let n = step.len();
+    assert_eq!(step[n - 3].parse::<f64>().unwrap(), 64.0, "{table}");
+    assert!(step[n - 2].parse::<f64>().unwrap() > 0.0 && step[n - 1].parse::<f64>().unwrap() > 0.0, "{table}");
+    let refused = cloth(&["profile", "--backend", "cpu"]);
+    assert_eq!(refused.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("profile wgpu or vulkano"));
+}
+
 #[test]
 fn effect_costs_are_medians_with_a_verdict_on_the_noise() {
     let out = cloth(&["bench", "--effects", "--backends", "cpu", "--grids", "16", "--repeats", "2"]);
