@@ -119,13 +119,13 @@ pub(crate) fn run(args: ProfileArgs) -> Result<()> {
         let (ms, us) = (p.seconds / frames * 1e3, p.seconds / p.dispatches as f64 * 1e6);
         out!("{:<36} {per_frame:>10.2} {ms:>10.4} {us:>12.2} {:>5.1}%", p.name, 100.0 * p.seconds / frames / frame_s)?;
         csv += &format!(
-            "{},\"{}\",{nx},{ny},{},{},{},{},{per_frame},{ms},{us}\n",
+            "{},\"{}\",{nx},{ny},{},{},{},\"{}\",{per_frame},{ms},{us}\n",
             backend.name,
             sim.adapter_name().replace('"', "'"),
             scene.substeps_per_frame(),
             args.skip + 1,
             args.frames,
-            p.name
+            p.name.replace('"', "'")
         );
     }
     let dispatches: u32 = total.iter().map(|p| p.dispatches).sum();

@@ -558,7 +558,7 @@ fn profile_prints_and_writes_each_pass_of_a_gpu_frame() {
     let table = std::fs::read_to_string(&csv).expect("the CSV was written");
     let _ = std::fs::remove_file(&csv);
     let step: Vec<&str> =
-        table.lines().find(|l| l.contains(",Euler substep,")).expect("the substeps' row").split(',').collect();
+        table.lines().find(|l| l.contains(",\"Euler substep\",")).expect("the substeps' row").split(',').collect();
     // 64 substeps a frame, one dispatch each; then the pass's GPU ms a frame and µs a dispatch.
     let n = step.len();
     assert_eq!(step[n - 3].parse::<f64>().unwrap(), 64.0, "{table}");
