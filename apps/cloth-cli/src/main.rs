@@ -5,6 +5,7 @@
 //! * `cloth check SCENE`: validate, and print spring counts, memory and the stable substep;
 //! * `cloth backends`: the backends compiled in and the adapters each can use;
 //! * `cloth bench`: ms per frame and vertex-substeps per second of each backend;
+//! * `cloth profile [SCENE]`: where a GPU frame's time goes, pass by pass;
 //! * `cloth study accuracy`: what accuracy costs in time;
 //! * `cloth view FILE.glb`: a run exported as glTF read back, and a kept frame drawn;
 //! * `cloth figure`: the pictures of docs/model.md.
