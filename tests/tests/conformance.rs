@@ -1282,6 +1282,12 @@ fn a_profiled_frame_is_an_ordinary_frame_timed_pass_by_pass() {
             let seconds: f64 = passes.iter().map(|p| p.seconds).sum();
             assert!(seconds > 0.0 && seconds <= wall, "{name}: GPU {seconds} s, wall {wall} s");
             assert!(passes.iter().all(|p| p.seconds >= 0.0 && p.seconds.is_finite()), "{name}: {passes:?}");
+            for p in &passes {
+                // (Within rounding: the mean is a sum divided again.)
+                let mean = p.seconds / p.dispatches as f64;
+                let slack = 1e-12 * p.longest_s;
+                assert!(p.shortest_s <= mean + slack && mean <= p.longest_s + slack, "{name}: {p:?}");
+            }
         }
     }
 }

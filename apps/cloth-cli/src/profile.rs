@@ -1,7 +1,9 @@
 //! `cloth profile`: where a GPU frame's time goes, pass by pass. Each profiled frame is recorded
 //! with a timestamp before its first dispatch and after each (`Simulator::profile_frame`), and the
 //! table sums the dispatches of each pipeline over the frames: how many a frame records, their
-//! GPU time a frame, the time a dispatch, and their share of the frame.
+//! GPU time a frame, the mean, shortest and longest time a dispatch, and their share of the
+//! frame. A rebuild pass of self-collision shows both of its kinds: its longest dispatches
+//! rebuild, its shortest run empty.
 //!
 //! A diagnostic, not a benchmark: each profiled frame waits for the device, and a timestamp after
 //! every dispatch can hold the next one back, so the passes may add up to a little more than the
@@ -73,10 +75,7 @@ pub(crate) fn plan(args: &ProfileArgs) -> Result<Plan> {
 fn add_frame(total: &mut Vec<PassTime>, frame: Vec<PassTime>) {
     for pass in frame {
         match total.iter_mut().find(|p| p.name == pass.name) {
-            Some(p) => {
-                p.dispatches += pass.dispatches;
-                p.seconds += pass.seconds;
-            }
+            Some(p) => p.add(&pass),
             None => total.push(pass),
         }
     }
@@ -110,16 +109,28 @@ pub(crate) fn run(args: ProfileArgs) -> Result<()> {
     }
     let frames = args.frames as f64;
     let frame_s: f64 = total.iter().map(|p| p.seconds).sum::<f64>() / frames;
-    out!("{:<36} {:>10} {:>10} {:>12} {:>6}", "pass", "dispatches", "ms", "us/dispatch", "share")?;
+    out!(
+        "{:<36} {:>10} {:>10} {:>12} {:>9} {:>9} {:>6}",
+        "pass",
+        "dispatches",
+        "ms",
+        "us/dispatch",
+        "shortest",
+        "longest",
+        "share"
+    )?;
     let mut csv = String::from(
-        "backend,adapter,nx,ny,substeps,first_frame,frames,pass,dispatches_per_frame,ms_per_frame,us_per_dispatch\n",
+        "backend,adapter,nx,ny,substeps,first_frame,frames,pass,dispatches_per_frame,ms_per_frame,us_per_dispatch,\
+         us_shortest,us_longest\n",
     );
     for p in &total {
         let per_frame = p.dispatches as f64 / frames;
         let (ms, us) = (p.seconds / frames * 1e3, p.seconds / p.dispatches as f64 * 1e6);
-        out!("{:<36} {per_frame:>10.2} {ms:>10.4} {us:>12.2} {:>5.1}%", p.name, 100.0 * p.seconds / frames / frame_s)?;
+        let (shortest, longest) = (p.shortest_s * 1e6, p.longest_s * 1e6);
+        let share = 100.0 * p.seconds / frames / frame_s;
+        out!("{:<36} {per_frame:>10.2} {ms:>10.4} {us:>12.2} {shortest:>9.2} {longest:>9.2} {share:>5.1}%", p.name)?;
         csv += &format!(
-            "{},\"{}\",{nx},{ny},{},{},{},\"{}\",{per_frame},{ms},{us}\n",
+            "{},\"{}\",{nx},{ny},{},{},{},\"{}\",{per_frame},{ms},{us},{shortest},{longest}\n",
             backend.name,
             sim.adapter_name().replace('"', "'"),
             scene.substeps_per_frame(),
@@ -148,17 +159,19 @@ pub(crate) fn run(args: ProfileArgs) -> Result<()> {
 mod tests {
     use super::*;
 
-    fn pass(name: &str, dispatches: u32, seconds: f64) -> PassTime {
-        PassTime { name: name.into(), dispatches, seconds }
+    fn pass(name: &str, dispatches: u32, seconds: f64, shortest_s: f64, longest_s: f64) -> PassTime {
+        PassTime { name: name.into(), dispatches, seconds, shortest_s, longest_s }
     }
 
     #[test]
     fn frames_add_up_pass_by_pass_whatever_passes_each_ran() {
         let mut total = Vec::new();
         // The first frame starts with the forced check; the later ones check as usual.
-        add_frame(&mut total, vec![pass("forced", 1, 1.0), pass("step", 4, 8.0)]);
-        add_frame(&mut total, vec![pass("step", 4, 6.0), pass("check", 2, 2.0)]);
-        assert_eq!(total, vec![pass("forced", 1, 1.0), pass("step", 8, 14.0), pass("check", 2, 2.0)]);
+        add_frame(&mut total, vec![pass("forced", 1, 1.0, 1.0, 1.0), pass("step", 4, 8.0, 1.0, 3.0)]);
+        add_frame(&mut total, vec![pass("step", 4, 6.0, 0.5, 2.0), pass("check", 2, 2.0, 1.0, 1.0)]);
+        let expected =
+            vec![pass("forced", 1, 1.0, 1.0, 1.0), pass("step", 8, 14.0, 0.5, 3.0), pass("check", 2, 2.0, 1.0, 1.0)];
+        assert_eq!(total, expected);
     }
 
     #[test]

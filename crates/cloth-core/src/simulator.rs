@@ -78,6 +78,26 @@ pub struct PassTime {
     /// after it, summed. So it includes the wait at the barrier before the dispatch, and a
     /// dispatch of no workgroups (an indirect one sized to zero) still takes its launch.
     pub seconds: f64,
+    /// Its shortest dispatch, s (with [`PassTime::longest_s`]: where a pass's dispatches differ
+    /// in kind, a rebuild pass that rebuilds or runs empty, the two kinds).
+    pub shortest_s: f64,
+    /// Its longest dispatch, s.
+    pub longest_s: f64,
+}
+
+impl PassTime {
+    /// A pass of one dispatch that took `seconds`.
+    pub fn of_dispatch(name: &str, seconds: f64) -> Self {
+        Self { name: name.into(), dispatches: 1, seconds, shortest_s: seconds, longest_s: seconds }
+    }
+
+    /// Adds `other`'s dispatches (the same pass's, another frame's or another dispatch's).
+    pub fn add(&mut self, other: &PassTime) {
+        self.dispatches += other.dispatches;
+        self.seconds += other.seconds;
+        self.shortest_s = self.shortest_s.min(other.shortest_s);
+        self.longest_s = self.longest_s.max(other.longest_s);
+    }
 }
 
 /// A cloth simulator. One frame is `scene.substeps_per_frame()` substeps of

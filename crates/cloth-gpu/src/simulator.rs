@@ -93,13 +93,10 @@ pub trait GpuBackend: Sized {
 pub fn passes_of(dispatches: &[Dispatch], seconds: &[f64], names: &[String]) -> Vec<PassTime> {
     let mut passes: Vec<PassTime> = Vec::new();
     for (d, &t) in dispatches.iter().zip(seconds) {
-        let name = &names[d.pipeline];
-        match passes.iter_mut().find(|p| &p.name == name) {
-            Some(p) => {
-                p.dispatches += 1;
-                p.seconds += t;
-            }
-            None => passes.push(PassTime { name: name.clone(), dispatches: 1, seconds: t }),
+        let dispatch = PassTime::of_dispatch(&names[d.pipeline], t);
+        match passes.iter_mut().find(|p| p.name == dispatch.name) {
+            Some(p) => p.add(&dispatch),
+            None => passes.push(dispatch),
         }
     }
     passes
@@ -451,8 +448,9 @@ mod tests {
         let frame: Vec<Dispatch> = [0, 1, 2, 2, 0, 1, 2, 2].into_iter().map(dispatch).collect();
         let seconds = [1.0, 2.0, 10.0, 20.0, 3.0, 4.0, 30.0, 40.0];
         let passes = passes_of(&frame, &seconds, &names);
-        let rows: Vec<(&str, u32, f64)> = passes.iter().map(|p| (p.name.as_str(), p.dispatches, p.seconds)).collect();
-        assert_eq!(rows, [("check", 2, 4.0), ("insert", 2, 6.0), ("step", 4, 100.0)]);
+        let rows: Vec<(&str, u32, f64, f64, f64)> =
+            passes.iter().map(|p| (p.name.as_str(), p.dispatches, p.seconds, p.shortest_s, p.longest_s)).collect();
+        assert_eq!(rows, [("check", 2, 4.0, 1.0, 3.0), ("insert", 2, 6.0, 2.0, 4.0), ("step", 4, 100.0, 10.0, 40.0)]);
         // A pipeline that never runs has no row; the rows add up to the frame.
         let total: f64 = passes.iter().map(|p| p.seconds).sum();
         assert_eq!(total, seconds.iter().sum::<f64>());
