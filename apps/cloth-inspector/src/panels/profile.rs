@@ -34,11 +34,13 @@ impl FrameProfile {
         )];
         for p in &self.passes {
             lines.push(format!(
-                "  {:<36} {:>4} dispatches {:>9.3} ms {:>5.1}%",
+                "  {:<36} {:>4} dispatches {:>9.3} ms {:>5.1}% ({:.1} to {:.1} µs each)",
                 p.name,
                 p.dispatches,
                 p.seconds * 1e3,
-                100.0 * p.seconds / total
+                100.0 * p.seconds / total,
+                p.shortest_s * 1e6,
+                p.longest_s * 1e6
             ));
         }
         lines
@@ -67,7 +69,15 @@ pub fn show(ui: &mut egui::Ui, last: Option<&FrameProfile>, backend: &str, comma
     ));
     for p in &profile.passes {
         let share = if total > 0.0 { (p.seconds / total) as f32 } else { 0.0 };
-        ui.label(&p.name);
+        let each = if p.dispatches > 1 {
+            format!("{:.1} to {:.1} µs a dispatch", p.shortest_s * 1e6, p.longest_s * 1e6)
+        } else {
+            String::new()
+        };
+        ui.horizontal(|ui| {
+            ui.label(&p.name);
+            ui.weak(each);
+        });
         ui.add(egui::ProgressBar::new(share).text(format!(
             "{:.3} ms, {} dispatch{} ({:.0}%)",
             p.seconds * 1e3,
