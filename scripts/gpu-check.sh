@@ -27,7 +27,8 @@
 #                build and with the build at OTHER_CLOTH, by turns, ROUNDS times (default 2)
 #   compare-self the self-collision rows of `cloth bench --effects` on scenes/self_collision_bench.ron
 #                (SELF_EFFECT_GRIDS, default 256,1024) with this build and with the build at
-#                OTHER_CLOTH, by turns, ROUNDS times (default 2)
+#                OTHER_CLOTH, by turns, ROUNDS times (default 2), and each build's `cloth profile`
+#                of those frames on vulkano (compare-self-profile.txt)
 #   peer         NVIDIA Warp's own cloth benchmark and its CuPy and PyTorch versions on the same
 #                grids (scripts/peer-cloth.py; warp-lang 1.0.2 must be importable; PEER_GRIDS,
 #                default 128,1024,2048)
@@ -179,6 +180,13 @@ compare_self_rows() {
   labelled_bench "$build" "$label" "$OUT/compare-self.csv" --effects --scene scenes/self_collision_bench.ron \
     --grids "${SELF_EFFECT_GRIDS:-256,1024}" --frames 10 | tee -a "$OUT/compare-self.txt"
   grep -E "SelfCollision|candidate lists" "$OUT/rows.txt" | sed "s|^|$label |" | tee -a "$OUT/compare-self.txt"
+  # Each build's passes on vulkano, where it has `cloth profile`.
+  "$build" profile --help > /dev/null 2>&1 || return 0
+  local grids=${SELF_EFFECT_GRIDS:-256,1024} n
+  for n in ${grids//,/ }; do
+    "$build" profile scenes/self_collision_bench.ron --backend vulkano --grid "${n}x$n" --skip 1 --frames 50 2>&1 |
+      grep -v '^wrote' | sed "s|^|$label |" >> "$OUT/compare-self-profile.txt"
+  done
 }
 
 if [[ " $checks " == *" compare "* ]]; then
