@@ -70,17 +70,6 @@ pub(crate) fn plan(args: &ProfileArgs) -> Result<Plan> {
     Ok(Plan { scene, backend, work })
 }
 
-/// The passes of several profiled frames, summed pass by pass (matched by name, in the order
-/// they first ran).
-fn add_frame(total: &mut Vec<PassTime>, frame: Vec<PassTime>) {
-    for pass in frame {
-        match total.iter_mut().find(|p| p.name == pass.name) {
-            Some(p) => p.add(&pass),
-            None => total.push(pass),
-        }
-    }
-}
-
 pub(crate) fn run(args: ProfileArgs) -> Result<()> {
     let Plan { scene, backend, .. } = plan(&args)?;
     if let Some(path) = &args.csv {
@@ -105,7 +94,7 @@ pub(crate) fn run(args: ProfileArgs) -> Result<()> {
         let Some(frame) = sim.profile_frame()? else {
             bail!("{} cannot write timestamps between dispatches on {}: no profile", backend.name, sim.adapter_name());
         };
-        add_frame(&mut total, frame);
+        frame.into_iter().for_each(|pass| pass.add_to(&mut total));
     }
     let frames = args.frames as f64;
     let frame_s: f64 = total.iter().map(|p| p.seconds).sum::<f64>() / frames;
@@ -158,21 +147,6 @@ pub(crate) fn run(args: ProfileArgs) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn pass(name: &str, dispatches: u32, seconds: f64, shortest_s: f64, longest_s: f64) -> PassTime {
-        PassTime { name: name.into(), dispatches, seconds, shortest_s, longest_s }
-    }
-
-    #[test]
-    fn frames_add_up_pass_by_pass_whatever_passes_each_ran() {
-        let mut total = Vec::new();
-        // The first frame starts with the forced check; the later ones check as usual.
-        add_frame(&mut total, vec![pass("forced", 1, 1.0, 1.0, 1.0), pass("step", 4, 8.0, 1.0, 3.0)]);
-        add_frame(&mut total, vec![pass("step", 4, 6.0, 0.5, 2.0), pass("check", 2, 2.0, 1.0, 1.0)]);
-        let expected =
-            vec![pass("forced", 1, 1.0, 1.0, 1.0), pass("step", 8, 14.0, 0.5, 3.0), pass("check", 2, 2.0, 1.0, 1.0)];
-        assert_eq!(total, expected);
-    }
 
     #[test]
     fn the_cpu_backends_have_no_passes_to_profile() {

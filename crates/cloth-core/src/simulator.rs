@@ -91,12 +91,18 @@ impl PassTime {
         Self { name: name.into(), dispatches: 1, seconds, shortest_s: seconds, longest_s: seconds }
     }
 
-    /// Adds `other`'s dispatches (the same pass's, another frame's or another dispatch's).
-    pub fn add(&mut self, other: &PassTime) {
-        self.dispatches += other.dispatches;
-        self.seconds += other.seconds;
-        self.shortest_s = self.shortest_s.min(other.shortest_s);
-        self.longest_s = self.longest_s.max(other.longest_s);
+    /// Adds this pass's dispatches (one dispatch's, or a frame's) to the pass of the same name in
+    /// `passes`, or appends it: passes summed by name, in the order they first come.
+    pub fn add_to(self, passes: &mut Vec<PassTime>) {
+        match passes.iter_mut().find(|p| p.name == self.name) {
+            Some(p) => {
+                p.dispatches += self.dispatches;
+                p.seconds += self.seconds;
+                p.shortest_s = p.shortest_s.min(self.shortest_s);
+                p.longest_s = p.longest_s.max(self.longest_s);
+            }
+            None => passes.push(self),
+        }
     }
 }
 
@@ -271,7 +277,26 @@ fn mesh_source(shape: &crate::colliders::Shape) -> Option<(&str, u64, u32)> {
 
 #[cfg(test)]
 mod tests {
+    use super::PassTime;
     use crate::scene::{Edge, Motion, Pin, PinGroup, Scene};
+
+    fn pass(name: &str, dispatches: u32, seconds: f64, shortest_s: f64, longest_s: f64) -> PassTime {
+        PassTime { name: name.into(), dispatches, seconds, shortest_s, longest_s }
+    }
+
+    #[test]
+    fn frames_add_up_pass_by_pass_whatever_passes_each_ran() {
+        let mut total = Vec::new();
+        // The first frame starts with the forced check; the later ones check as usual.
+        let frames = [
+            vec![pass("forced", 1, 1.0, 1.0, 1.0), pass("step", 4, 8.0, 1.0, 3.0)],
+            vec![pass("step", 4, 6.0, 0.5, 2.0), pass("check", 2, 2.0, 1.0, 1.0)],
+        ];
+        frames.into_iter().flatten().for_each(|p| p.add_to(&mut total));
+        let expected =
+            vec![pass("forced", 1, 1.0, 1.0, 1.0), pass("step", 8, 14.0, 0.5, 3.0), pass("check", 2, 2.0, 1.0, 1.0)];
+        assert_eq!(total, expected);
+    }
 
     #[test]
     fn other_pins_rebuild_a_simulator_and_other_pin_motions_do_not() {

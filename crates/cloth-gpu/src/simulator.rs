@@ -93,11 +93,7 @@ pub trait GpuBackend: Sized {
 pub fn passes_of(dispatches: &[Dispatch], seconds: &[f64], names: &[String]) -> Vec<PassTime> {
     let mut passes: Vec<PassTime> = Vec::new();
     for (d, &t) in dispatches.iter().zip(seconds) {
-        let dispatch = PassTime::of_dispatch(&names[d.pipeline], t);
-        match passes.iter_mut().find(|p| p.name == dispatch.name) {
-            Some(p) => p.add(&dispatch),
-            None => passes.push(dispatch),
-        }
+        PassTime::of_dispatch(&names[d.pipeline], t).add_to(&mut passes);
     }
     passes
 }
